@@ -1,0 +1,74 @@
+"""Tests for wovenskin.signal.filters: causal moving average and last-good-value hold."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from wovenskin.signal.filters import CausalMovingAverage, hold_last_good
+
+
+def _naive_trailing_mean(x: np.ndarray, window: int) -> np.ndarray:
+    padded = np.concatenate([np.zeros((window - 1, *x.shape[1:])), x])
+    return np.stack([padded[i : i + window].mean(axis=0) for i in range(len(x))])
+
+
+def _chunks(n: int, sizes: list[int]) -> list[tuple[int, int]]:
+    out, pos, k = [], 0, 0
+    while pos < n:
+        size = sizes[k % len(sizes)]
+        out.append((pos, min(n, pos + size)))
+        pos, k = pos + size, k + 1
+    return out
+
+
+@pytest.mark.parametrize("window", [1, 4, 20])
+def test_matches_a_naive_trailing_mean(window):
+    x = np.random.default_rng(window).normal(size=(137, 3, 4))
+    smoothed = CausalMovingAverage(window, (3, 4)).apply(x)
+    np.testing.assert_allclose(smoothed, _naive_trailing_mean(x, window), atol=1e-12)
+
+
+def test_step_response_ramps_over_the_window():
+    x = np.zeros((30, 1, 1))
+    x[10:] = 1.0
+    smoothed = CausalMovingAverage(5, (1, 1)).apply(x)[:, 0, 0]
+    np.testing.assert_allclose(smoothed[9:16], [0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.0])
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(
+    window=st.integers(1, 25),
+    sizes=st.lists(st.integers(1, 60), min_size=1, max_size=8),
+)
+def test_any_chunking_is_bit_identical(window, sizes):
+    x = np.random.default_rng(0).normal(size=(300, 2, 3))
+    whole = CausalMovingAverage(window, (2, 3)).apply(x)
+    streaming = CausalMovingAverage(window, (2, 3))
+    parts = [streaming.apply(x[a:b]) for a, b in _chunks(len(x), sizes)]
+    assert np.array_equal(np.concatenate(parts), whole)
+
+
+def test_reset_forgets_the_history_and_empty_input_is_fine():
+    average = CausalMovingAverage(3, (1, 1))
+    first = average.apply(np.ones((5, 1, 1)))
+    assert average.apply(np.zeros((0, 1, 1))).shape == (0, 1, 1)
+    average.reset()
+    assert np.array_equal(average.apply(np.ones((5, 1, 1))), first)
+
+
+def test_window_must_be_positive():
+    with pytest.raises(ValueError, match="at least 1 frame"):
+        CausalMovingAverage(0, (2, 2))
+
+
+def test_hold_last_good_fills_forward_from_the_carried_value():
+    x = np.array([[1.0, 10.0], [np.nan, 20.0], [3.0, np.inf], [np.nan, np.nan]]).reshape(4, 1, 2)
+    bad = ~np.isfinite(x)
+    bad[0, 0, 1] = True  # first sample of channel 1 is bad too: use the carried value
+    filled = hold_last_good(x, bad, np.array([[-1.0, -2.0]]))
+    assert filled[:, 0, 0].tolist() == [1.0, 1.0, 3.0, 3.0]
+    assert filled[:, 0, 1].tolist() == [-2.0, 20.0, 20.0, 20.0]
+    assert np.isnan(x[1, 0, 0])  # input untouched

@@ -1,0 +1,153 @@
+"""Tests of the live simulated skin source (wovenskin.sim.live).
+
+Timing is checked loosely only (frames arrive, in order, not absurdly early).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from wovenskin.sim.live import SimulatedSkinSource
+from wovenskin.skin.frames import Frame, SourceEvent
+from wovenskin.skin.source import SkinSource, open_source
+
+FS = 200.0
+
+
+def collect(source: SimulatedSkinSource, frames: int, guard_s: float = 20.0) -> list[Frame]:
+    """Poll until ``frames`` frames arrived (a generous guard only prevents a hang)."""
+    out: list[Frame] = []
+    deadline = time.monotonic() + guard_s
+    while len(out) < frames and time.monotonic() < deadline:
+        out += [item for item in source.poll(0.05) if isinstance(item, Frame)]
+    return out
+
+
+def test_from_options_parses_every_option():
+    src = SimulatedSkinSource.from_options(
+        {
+            "seed": "3",
+            "speed": "0",
+            "rows": "6",
+            "cols": "8",
+            "gestures": "swipe_up+push",
+            "idle": "0.3-0.6",
+            "invalid": "0.1",
+        }
+    )
+    assert (src.info.rows, src.info.cols, src.info.source) == (6, 8, "sim")
+    assert src.info.units == "pF" and src.info.sample_rate_hz == FS
+    assert src.seed == 3 and src.speed == 0.0
+    assert src._scheduler.gestures == ["swipe_up", "push"]
+    assert src._scheduler.idle_s == (0.3, 0.6)
+    # "sim:gestures=swipe_up,push" reaches us split at the comma.
+    split = SimulatedSkinSource.from_options({"gestures": "swipe_up", "push": ""})
+    assert split._scheduler.gestures == ["swipe_up", "push"]
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"speed": "fast"}, "number"),
+        ({"speed": "-1"}, ">= 0"),
+        ({"colour": "red"}, "unknown sim option"),
+        ({"gestures": "wave"}, "unknown gesture"),
+        ({"idle": "a-b"}, "idle"),
+        ({"rows": "0"}, "at least one"),
+    ],
+)
+def test_from_options_rejects_bad_options(options, message):
+    with pytest.raises(ValueError, match=message):
+        SimulatedSkinSource.from_options(options)
+
+
+def test_open_source_streams_ordered_frames():
+    src = open_source("sim:seed=1,speed=0")
+    assert isinstance(src, SkinSource) and isinstance(src, SimulatedSkinSource)
+    assert src.poll(0.01) == []  # not started yet
+    src.start()
+    src.start()  # idempotent
+    try:
+        first = src.poll(1.0)
+        assert isinstance(first[0], SourceEvent) and first[0].kind == "connected"
+        frames = [f for f in first if isinstance(f, Frame)] + collect(src, 600)
+        seqs = np.array([f.seq for f in frames])
+        assert len(frames) >= 600 and np.array_equal(seqs, np.arange(len(frames)))
+        assert all(f.t == pytest.approx(f.seq / FS) for f in frames)
+        assert frames[0].values.shape == (10, 10) and frames[0].values.dtype == np.float32
+        values = np.stack([f.values for f in frames[: int(FS)]]).astype(np.float64)
+        assert np.percentile(np.abs(values - np.median(values, axis=0)), 99) < 0.5
+        assert all(e.start_s >= 1.0 for e in src.events)
+        assert src.stats().good_frames == len(frames) and src.stats().connected
+    finally:
+        src.close()
+        src.close()  # safe twice
+    assert not src.stats().connected
+    assert src.poll(0.01) == []
+    with pytest.raises(RuntimeError, match="closed"):
+        src.start()
+
+
+def test_perform_queues_the_next_gesture_and_the_truth_is_reported():
+    src = SimulatedSkinSource(
+        seed=2, speed=0, gestures=["swipe_up"], invalid_fraction=0.0, max_batch=4
+    )
+    src.start()
+    try:
+        src.perform("pinch_out_5f")
+        labels = set()
+        deadline = time.monotonic() + 20.0
+        while time.monotonic() < deadline and len(src.events) < 3:
+            frames = [f for f in src.poll(0.05) if isinstance(f, Frame)]
+            label = src.current_label()
+            labels.add(label)
+            if frames and label is not None:  # the truth matches the event timeline
+                (event,) = [e for e in src.events if e.start_s <= frames[-1].t < e.end_s]
+                assert event.label == label
+        events = src.events
+        assert [e.label for e in events[:3]] == ["pinch_out_5f", "swipe_up", "swipe_up"]
+        assert {"pinch_out_5f", "swipe_up", None} <= labels
+        with pytest.raises(ValueError, match="unknown gesture"):
+            src.perform("wave")
+        src.perform("invalid:palm")
+        deadline = time.monotonic() + 20.0
+        while time.monotonic() < deadline and len(src.events) < 4:
+            src.poll(0.05)
+        assert src.events[3].label == "invalid" and src.events[3].invalid_kind == "palm"
+    finally:
+        src.close()
+
+
+def test_real_time_pacing_is_roughly_the_sample_rate():
+    src = SimulatedSkinSource(seed=3, speed=1.0)
+    src.start()
+    try:
+        began = time.monotonic()
+        frames = collect(src, 60)
+        elapsed = time.monotonic() - began
+        assert len(frames) >= 60
+        # Frames never run ahead of the wall clock (allowing for the first frame at t=0).
+        assert frames[-1].t <= elapsed + 0.1
+        assert all(b.seq == a.seq + 1 for a, b in zip(frames, frames[1:], strict=False))
+    finally:
+        src.close()
+
+
+def test_stop_pauses_and_start_resumes():
+    src = SimulatedSkinSource(seed=4, speed=1.0)
+    src.start()
+    try:
+        assert collect(src, 10)
+        src.send_command("stop")
+        src.poll(0.05)  # frames already due are still handed out
+        assert [i for i in src.poll(0.3) if isinstance(i, Frame)] == []
+        src.send_command("start")
+        assert collect(src, 10)
+        src.send_command("recalibrate")
+        with pytest.raises(ValueError, match="unknown skin command"):
+            src.send_command("explode")
+    finally:
+        src.close()

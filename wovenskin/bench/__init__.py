@@ -1,0 +1,1 @@
+"""Benchmarks behind ``wovenskin bench``: they print measured figures and ratios."""

@@ -1,0 +1,371 @@
+"""Interchange formats of ``../shared/FORMATS.md``: labelled streams and labelled captures.
+
+Readers validate keys, dtypes and shapes and raise :class:`FormatError` with a one-line
+message naming the file and the problem; they never fail with a bare traceback and never
+unpickle (``allow_pickle=False``).  Writers run the same checks before writing, so they
+cannot produce a file the readers would reject, and replace the target atomically.
+
+Conventions beyond FORMATS.md (documented in ``docs/recording-format.md``):
+
+- floating-point frames are returned as float32; integer frames are kept exactly as read
+  (signal conditioning converts them to float);
+- ``metadata`` round-trips: its array values are stored as extra ``.npz`` keys and the rest
+  as one JSON string under :data:`METADATA_JSON_KEY`, which other tools ignore;
+- keys a reader does not know are kept in ``metadata`` (e.g. ``substrate``, ``cover``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+
+
+class FormatError(ValueError):
+    """A file does not follow the format it claims to be in."""
+
+
+@dataclass
+class LabelledStream:
+    """A continuous recording from one skin (FORMATS.md "Labelled stream")."""
+
+    frames: np.ndarray  # (T, R, C) raw values, float32 or integer
+    t: np.ndarray  # (T,) float64 seconds, increasing
+    sample_rate_hz: float
+    event_start_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    event_end_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    event_labels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
+    metadata: dict = field(default_factory=dict)
+
+
+@dataclass
+class LabelledCaptures:
+    """Separate captures with one label each (FORMATS.md "Labelled captures")."""
+
+    frames: np.ndarray  # (N, T, R, C)
+    lengths: np.ndarray  # (N,) int64
+    labels: np.ndarray  # (N,) int64 into class_names
+    class_names: list[str]
+    groups: np.ndarray  # (N,) str
+    sample_rate_hz: float
+    metadata: dict = field(default_factory=dict)
+
+
+METADATA_JSON_KEY = "metadata_json"
+"""Extension key: the JSON-serialisable part of ``metadata``, as one string."""
+
+STREAM_KEYS = ("frames", "t", "sample_rate_hz")
+EVENT_KEYS = ("event_start_s", "event_end_s", "event_labels")
+CAPTURES_KEYS = ("frames", "lengths", "labels", "class_names", "groups", "sample_rate_hz")
+# Names np.savez cannot take as keyword keys.
+_SAVEZ_RESERVED = ("file", "allow_pickle")
+
+
+# ----------------------------------------------------------------------------- readers
+
+
+def read_labelled_stream(path: str | os.PathLike) -> LabelledStream:
+    """Read and validate a labelled-stream ``.npz``; :class:`FormatError` if it is bad."""
+    where = str(path)
+    arrays = _load_npz(path)
+    missing = [k for k in STREAM_KEYS if k not in arrays]
+    if missing and {"lengths", "labels"} <= arrays.keys():
+        _fail(where, "is a labelled-captures file, not a labelled stream")
+    _require_keys(where, arrays, STREAM_KEYS, "a labelled stream")
+    return _stream_from_arrays(where, arrays)
+
+
+def read_labelled_captures(path: str | os.PathLike) -> LabelledCaptures:
+    """Read and validate a labelled-captures ``.npz``; :class:`FormatError` if it is bad."""
+    where = str(path)
+    arrays = _load_npz(path)
+    _require_keys(where, arrays, CAPTURES_KEYS, "labelled captures")
+    return _captures_from_arrays(where, arrays)
+
+
+# ----------------------------------------------------------------------------- writers
+
+
+def write_labelled_stream(path: str | os.PathLike, stream: LabelledStream) -> None:
+    """Write ``stream`` as a labelled-stream ``.npz`` (validated first, replaced atomically)."""
+    where = f"cannot write {path}"
+    arrays = {
+        "frames": np.asarray(stream.frames),
+        "t": np.asarray(stream.t, dtype=np.float64),
+        "sample_rate_hz": np.float64(stream.sample_rate_hz),
+        "event_start_s": np.asarray(stream.event_start_s, dtype=np.float64),
+        "event_end_s": np.asarray(stream.event_end_s, dtype=np.float64),
+        "event_labels": _as_str_array(stream.event_labels),
+    }
+    arrays.update(_metadata_to_arrays(where, stream.metadata, reserved=arrays.keys()))
+    _stream_from_arrays(where, arrays)
+    _save_npz(path, arrays)
+
+
+def write_labelled_captures(path: str | os.PathLike, captures: LabelledCaptures) -> None:
+    """Write ``captures`` as a labelled-captures ``.npz`` (validated first, atomic)."""
+    where = f"cannot write {path}"
+    arrays = {
+        "frames": np.asarray(captures.frames),
+        "lengths": np.asarray(captures.lengths),
+        "labels": np.asarray(captures.labels),
+        "class_names": _as_str_array(captures.class_names),
+        "groups": _as_str_array(captures.groups),
+        "sample_rate_hz": np.float64(captures.sample_rate_hz),
+    }
+    arrays.update(_metadata_to_arrays(where, captures.metadata, reserved=arrays.keys()))
+    _captures_from_arrays(where, arrays)
+    _save_npz(path, arrays)
+
+
+# ----------------------------------------------------------------------------- validation
+
+
+def _stream_from_arrays(where: str, arrays: dict[str, np.ndarray]) -> LabelledStream:
+    frames = _check_frames(where, arrays["frames"], "(T, R, C)")
+    n_frames = frames.shape[0]
+    t = _check_real(where, "t", arrays["t"], (n_frames,))
+    if n_frames > 1 and not np.all(np.diff(t) > 0):
+        i = int(np.argmin(np.diff(t) > 0))
+        _fail(where, f"'t' must be strictly increasing, but t[{i + 1}]={t[i + 1]} <= t[{i}]={t[i]}")
+    rate = _check_rate(where, arrays["sample_rate_hz"])
+    if frames.dtype.kind == "f":
+        _check_finite(where, "frames", frames)
+    present = [k for k in EVENT_KEYS if k in arrays]
+    if present and len(present) < len(EVENT_KEYS):
+        absent = [k for k in EVENT_KEYS if k not in arrays]
+        _fail(where, f"event keys come together: has {present} but not {absent}")
+    if present:
+        labels = _check_strings(where, "event_labels", arrays["event_labels"])
+        shape = (len(labels),)
+        starts = _check_real(where, "event_start_s", arrays["event_start_s"], shape)
+        ends = _check_real(where, "event_end_s", arrays["event_end_s"], shape)
+        backwards = np.flatnonzero(ends < starts)
+        if backwards.size:
+            i = int(backwards[0])
+            problem = (
+                f"event {i} ({str(labels[i])!r}) ends at {ends[i]} before it starts at {starts[i]}"
+            )
+            _fail(where, problem)
+    else:
+        labels, starts, ends = np.zeros(0, dtype=str), np.zeros(0), np.zeros(0)
+    known = (*STREAM_KEYS, *EVENT_KEYS)
+    return LabelledStream(
+        frames=frames,
+        t=t,
+        sample_rate_hz=rate,
+        event_start_s=starts,
+        event_end_s=ends,
+        event_labels=labels,
+        metadata=_metadata_from_arrays(where, arrays, known),
+    )
+
+
+def _captures_from_arrays(where: str, arrays: dict[str, np.ndarray]) -> LabelledCaptures:
+    frames = _check_frames(where, arrays["frames"], "(N, T, R, C)")
+    n, t_max = frames.shape[:2]
+    lengths = _check_integers(where, "lengths", arrays["lengths"], n)
+    out_of_range = np.flatnonzero((lengths < 1) | (lengths > t_max))
+    if out_of_range.size:
+        i = int(out_of_range[0])
+        _fail(where, f"'lengths' must lie in [1, {t_max}], but capture {i} has {lengths[i]}")
+    class_names = _check_strings(where, "class_names", arrays["class_names"])
+    if class_names.size == 0:
+        _fail(where, "'class_names' is empty")
+    if len(set(class_names.tolist())) != class_names.size:
+        _fail(where, f"'class_names' has duplicates: {class_names.tolist()}")
+    labels = _check_integers(where, "labels", arrays["labels"], n)
+    bad = np.flatnonzero((labels < 0) | (labels >= class_names.size))
+    if bad.size:
+        i = int(bad[0])
+        _fail(
+            where,
+            f"'labels' must index class_names (0..{class_names.size - 1}), capture {i} "
+            f"has {labels[i]}",
+        )
+    groups = _check_strings(where, "groups", arrays["groups"])
+    if groups.shape != (n,):
+        _fail(where, f"'groups' must have shape ({n},) matching frames, got {groups.shape}")
+    rate = _check_rate(where, arrays["sample_rate_hz"])
+    if frames.dtype.kind == "f":
+        valid = np.arange(t_max)[None, :] < lengths[:, None]
+        _check_finite(where, "frames", frames[valid])
+    return LabelledCaptures(
+        frames=frames,
+        lengths=lengths,
+        labels=labels,
+        class_names=class_names.tolist(),
+        groups=groups,
+        sample_rate_hz=rate,
+        metadata=_metadata_from_arrays(where, arrays, CAPTURES_KEYS),
+    )
+
+
+def _check_frames(where: str, frames: np.ndarray, axes: str) -> np.ndarray:
+    ndim = axes.count(",") + 1
+    if frames.ndim != ndim:
+        _fail(where, f"'frames' must have shape {axes}, got {frames.shape}")
+    if frames.dtype.kind not in "iuf":
+        _fail(where, f"'frames' must be float or integer, got dtype {frames.dtype}")
+    if 0 in frames.shape:
+        _fail(where, f"'frames' is empty, shape {frames.shape}")
+    return frames.astype(np.float32, copy=False) if frames.dtype.kind == "f" else frames
+
+
+def _check_real(where: str, key: str, a: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    if a.dtype.kind not in "iuf":
+        _fail(where, f"'{key}' must be numeric, got dtype {a.dtype}")
+    if a.shape != shape:
+        _fail(where, f"'{key}' must have shape {shape}, got {a.shape}")
+    a = a.astype(np.float64, copy=False)
+    _check_finite(where, key, a)
+    return a
+
+
+def _check_integers(where: str, key: str, a: np.ndarray, n: int) -> np.ndarray:
+    if a.dtype.kind not in "iu":
+        _fail(where, f"'{key}' must be integers, got dtype {a.dtype}")
+    if a.shape != (n,):
+        _fail(where, f"'{key}' must have shape ({n},) matching frames, got {a.shape}")
+    return a.astype(np.int64, copy=False)
+
+
+def _check_strings(where: str, key: str, a: np.ndarray) -> np.ndarray:
+    if a.dtype.kind != "U":
+        _fail(where, f"'{key}' must be strings, got dtype {a.dtype}")
+    if a.ndim != 1:
+        _fail(where, f"'{key}' must be one-dimensional, got shape {a.shape}")
+    return a
+
+
+def _check_rate(where: str, a: np.ndarray) -> float:
+    if a.dtype.kind not in "iuf" or a.size != 1 or a.ndim > 1:
+        _fail(where, f"'sample_rate_hz' must be a scalar number, got {a.dtype} shape {a.shape}")
+    rate = float(a.reshape(()))
+    if not (np.isfinite(rate) and rate > 0):
+        _fail(where, f"'sample_rate_hz' must be finite and > 0, got {rate}")
+    return rate
+
+
+def _check_finite(where: str, key: str, a: np.ndarray) -> None:
+    bad = a.size - int(np.count_nonzero(np.isfinite(a)))
+    if bad:
+        _fail(where, f"'{key}' holds {bad} NaN or infinite value{'s' if bad > 1 else ''}")
+
+
+def _require_keys(where: str, arrays: dict, keys: tuple[str, ...], kind: str) -> None:
+    missing = [k for k in keys if k not in arrays]
+    if missing:
+        names = ", ".join(repr(k) for k in missing)
+        _fail(where, f"missing key{'s' if len(missing) > 1 else ''} {names} (needed by {kind})")
+
+
+# ----------------------------------------------------------------------------- metadata
+
+
+def _metadata_from_arrays(where: str, arrays: dict[str, np.ndarray], known) -> dict:
+    metadata: dict = {}
+    if METADATA_JSON_KEY in arrays:
+        text = arrays[METADATA_JSON_KEY]
+        if text.dtype.kind != "U" or text.ndim != 0:
+            _fail(where, f"'{METADATA_JSON_KEY}' must be a string, got {text.dtype} {text.shape}")
+        try:
+            metadata = json.loads(str(text))
+        except json.JSONDecodeError as exc:
+            _fail(where, f"'{METADATA_JSON_KEY}' is not valid JSON ({exc})")
+        if not isinstance(metadata, dict):
+            _fail(where, f"'{METADATA_JSON_KEY}' must hold a JSON object")
+    for key, value in arrays.items():
+        if key not in known and key != METADATA_JSON_KEY:
+            metadata[key] = value
+    return metadata
+
+
+def _metadata_to_arrays(where: str, metadata: dict, reserved) -> dict[str, np.ndarray]:
+    arrays: dict[str, np.ndarray] = {}
+    document: dict = {}
+    taken = {*reserved, METADATA_JSON_KEY, *_SAVEZ_RESERVED}
+    for key, value in metadata.items():
+        if not isinstance(value, np.ndarray):
+            document[key] = value
+        elif key in taken:
+            _fail(where, f"metadata array {key!r} clashes with a reserved key")
+        elif value.dtype.kind not in "biufcUS":
+            _fail(where, f"metadata array {key!r} has dtype {value.dtype}, which needs pickle")
+        else:
+            arrays[key] = value
+    if document:
+        try:
+            arrays[METADATA_JSON_KEY] = np.array(json.dumps(document, default=_json_default))
+        except (TypeError, ValueError) as exc:
+            _fail(where, f"metadata is not JSON-serialisable ({exc})")
+    return arrays
+
+
+def _json_default(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    raise TypeError(f"{type(value).__name__} is not JSON-serialisable")
+
+
+# ----------------------------------------------------------------------------- file access
+
+
+def _load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    where = str(path)
+    try:
+        with open(path, "rb") as f:
+            is_zip = zipfile.is_zipfile(f)
+    except FileNotFoundError:
+        _fail(where, "no such file")
+    except OSError as exc:
+        _fail(where, f"cannot read ({exc.strerror or exc})")
+    if not is_zip:
+        _fail(where, "not an .npz file (no zip directory: another format, or truncated)")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {key: npz[key] for key in npz.files}
+    except ValueError as exc:
+        if "pickle" in str(exc):
+            _fail(where, "holds Python objects (pickled arrays), which are never loaded")
+        _fail(where, f"corrupt .npz ({_one_line(exc)})")
+    except (OSError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        _fail(where, f"corrupt .npz ({_one_line(exc)})")
+    for key, value in arrays.items():
+        if not isinstance(value, np.ndarray):
+            _fail(where, f"member {key!r} is not a NumPy array")
+    return arrays
+
+
+def _save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
+    target = Path(path)
+    partial = target.with_name(target.name + ".partial")
+    try:
+        with open(partial, "wb") as f:
+            np.savez_compressed(f, **arrays)
+        os.replace(partial, target)
+    finally:
+        partial.unlink(missing_ok=True)
+
+
+def _as_str_array(values) -> np.ndarray:
+    a = np.asarray(values)
+    return a.astype(str) if a.size == 0 or a.dtype.kind in "OS" else a
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _fail(where: str, problem: str) -> NoReturn:
+    raise FormatError(f"{where}: {problem}")

@@ -1,0 +1,262 @@
+"""A skin source that plays back a labelled-stream ``.npz`` or a native ``.wsrec`` recording.
+
+:class:`ReplaySource` implements :class:`~wovenskin.skin.source.SkinSource`.  Frames come
+out in file order with ``Frame.t`` taken from the file's timestamps, paced against the
+wall clock (``speed`` 1 = real time, 2 = twice as fast, 0 = as fast as the consumer
+polls).  ``start_s`` starts at the first frame with ``t >= start_s`` (file time).  With
+``loop`` the whole file repeats; each pass shifts ``t`` and ``seq`` by the file's span so
+the stream clock keeps increasing.  A non-looping replay emits ``SourceEvent("end")`` once
+after its last frame.  The file's labels are available as :attr:`ReplaySource.events`
+(ground truth, in file time).  Bad files raise :class:`FormatError` when the source is
+created, never later.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from wovenskin.recording.formats import FormatError, read_labelled_stream
+from wovenskin.recording.native import LABEL_KIND_TRIAL, MAGIC_PREFIX, read_recording
+from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
+
+OPTIONS = ("speed", "loop", "start_s")
+FAST_BATCH = 256
+"""Most frames one :meth:`ReplaySource.poll` returns at ``speed=0``."""
+
+_ZIP_MAGICS = (b"PK\x03\x04", b"PK\x05\x06")
+_COMMANDS = ("start", "stop", "recalibrate")
+
+
+class ReplaySource:
+    """Plays a recorded file as if a skin were streaming it (see the module docstring)."""
+
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        *,
+        speed: float = 1.0,
+        loop: bool = False,
+        start_s: float = 0.0,
+    ) -> None:
+        if not (np.isfinite(speed) and speed >= 0):
+            raise ValueError(f"replay speed must be >= 0 (0 = as fast as polled), got {speed}")
+        if not np.isfinite(start_s):
+            raise ValueError(f"replay start_s must be a finite time in seconds, got {start_s}")
+        self.path = Path(path)
+        self.speed = float(speed)
+        self.loop = bool(loop)
+        self._load(self.path)
+        self._start_index = int(np.searchsorted(self._t, start_s, side="left"))
+        if self._start_index == len(self._t):
+            raise ValueError(
+                f"replay start_s={start_s} is past the end of {self.path} "
+                f"(last frame at t={self._t[-1]:.3f} s)"
+            )
+        span_dt = float(np.median(np.diff(self._t))) if len(self._t) > 1 else 0.0
+        step = span_dt if span_dt > 0 else 1.0 / self._info.sample_rate_hz
+        self._period_s = float(self._t[-1] - self._t[0]) + step
+        self._seq_period = max(int(self._seq[-1] - self._seq[0]), 0) + 1
+        self._stats = SourceStats()
+        self._queue: list[Frame | SourceEvent] = []
+        self._started = self._finished = self._closed = False
+        self._index = self._start_index
+        self._pass = 0
+        self._last_seq: int | None = None
+        self._wall_start = 0.0
+
+    @classmethod
+    def from_options(cls, path: str, options: dict[str, str]) -> ReplaySource:
+        """Create from ``replay:PATH?speed=2&loop=1&start_s=10`` style options."""
+        unknown = sorted(set(options) - set(OPTIONS))
+        if unknown:
+            raise ValueError(f"unknown replay option(s) {unknown}; known: {', '.join(OPTIONS)}")
+        return cls(
+            path,
+            speed=_float_option(options, "speed", 1.0),
+            loop=_bool_option(options, "loop"),
+            start_s=_float_option(options, "start_s", 0.0),
+        )
+
+    # -- SkinSource
+
+    @property
+    def info(self) -> SkinInfo:
+        return self._info
+
+    @property
+    def events(self) -> list[tuple[str, float, float]]:
+        """The file's labelled events ``(label, start_s, end_s)`` in file time."""
+        return list(self._events)
+
+    @property
+    def duration_s(self) -> float:
+        """Stream time one pass over the whole file covers."""
+        return self._period_s
+
+    def start(self) -> None:
+        if self._started or self._closed:
+            return
+        self._started = True
+        self._wall_start = time.monotonic()
+        self._stats.connected = True
+        message = f"replaying {self.path}: {len(self._t)} frames, {self._period_s:.1f} s"
+        if self._warnings:
+            message += f" ({len(self._warnings)} warning(s): {self._warnings[0]})"
+        self._queue.append(SourceEvent("connected", message, self._wall_start, self._info))
+
+    def poll(self, timeout: float = 0.05) -> list[Frame | SourceEvent]:
+        now = time.monotonic()
+        deadline = now + max(timeout, 0.0)
+        if not self._started or self._closed:
+            time.sleep(max(timeout, 0.0))
+            return []
+        items, self._queue = self._queue, []
+        while True:
+            items.extend(self._take_due(now))
+            if items or self._finished or now >= deadline:
+                break
+            time.sleep(min(deadline - now, self._wait_for_next(now)))
+            now = time.monotonic()
+        if not items and self._finished:
+            time.sleep(max(deadline - now, 0.0))
+        return items
+
+    def stats(self) -> SourceStats:
+        return self._stats.copy()
+
+    def send_command(self, command: str) -> None:
+        """Replays have no device: known commands are accepted and ignored."""
+        if command not in _COMMANDS:
+            raise ValueError(f"unknown command {command!r}; known: {', '.join(_COMMANDS)}")
+
+    def close(self) -> None:
+        self._closed = True
+        self._stats.connected = False
+
+    # -- internals
+
+    def _load(self, path: Path) -> None:
+        try:
+            with open(path, "rb") as f:
+                head = f.read(len(MAGIC_PREFIX))
+        except FileNotFoundError:
+            raise FormatError(f"{path}: no such file") from None
+        except OSError as exc:
+            raise FormatError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        self._warnings: list[str] = []
+        if head.startswith(MAGIC_PREFIX):
+            recording = read_recording(path)
+            if len(recording.t) == 0:
+                raise FormatError(f"{path}: recording holds no frames to replay")
+            info = recording.info
+            frames, t, seq = recording.frames, recording.t, recording.seq
+            self._device_t_us: np.ndarray | None = recording.device_t_us
+            self._events = [
+                (label.label, label.start_s, label.end_s)
+                for label in recording.labels
+                if label.kind == LABEL_KIND_TRIAL
+            ]
+            self._warnings = list(recording.warnings)
+        elif head.startswith(_ZIP_MAGICS):
+            stream = read_labelled_stream(path)
+            stored = stream.metadata.get("info")
+            info = SkinInfo.from_dict(stored) if isinstance(stored, dict) else SkinInfo()
+            info = replace(info, sample_rate_hz=stream.sample_rate_hz)
+            frames, t = stream.frames, stream.t
+            seq = np.arange(len(t), dtype=np.int64)
+            self._device_t_us = None
+            self._events = [
+                (str(label), float(start), float(end))
+                for label, start, end in zip(
+                    stream.event_labels, stream.event_start_s, stream.event_end_s, strict=True
+                )
+            ]
+        else:
+            raise FormatError(
+                f"{path}: cannot replay: neither a labelled-stream .npz nor a .wsrec recording"
+            )
+        backwards = np.flatnonzero(~(np.diff(t) >= 0))
+        if backwards.size:
+            i = int(backwards[0]) + 1
+            raise FormatError(f"{path}: frame times go backwards (or are NaN) at frame {i}")
+        self._frames = np.asarray(frames, dtype=np.float32)
+        self._t = np.asarray(t, dtype=np.float64)
+        self._seq = np.asarray(seq, dtype=np.int64)
+        rows, cols = self._frames.shape[1:]
+        self._info = replace(info, rows=rows, cols=cols, source=f"replay:{path}")
+
+    def _stream_time(self, index: int) -> float:
+        return float(self._t[index]) + self._pass * self._period_s
+
+    def _take_due(self, now: float) -> list[Frame | SourceEvent]:
+        if not self._started or self._finished:
+            return []
+        t_origin = float(self._t[self._start_index])
+        elapsed = (now - self._wall_start) * self.speed if self.speed > 0 else np.inf
+        limit = FAST_BATCH if self.speed == 0 else None
+        items: list[Frame | SourceEvent] = []
+        while self._stream_time(self._index) - t_origin <= elapsed:
+            items.append(self._frame(self._index, now))
+            self._index += 1
+            if self._index == len(self._t):
+                if not self.loop:
+                    self._finished = True
+                    message = (
+                        f"replay of {self.path} finished after {self._stats.good_frames} frames"
+                    )
+                    items.append(SourceEvent("end", message, now))
+                    break
+                self._index = 0
+                self._pass += 1
+            if limit is not None and len(items) >= limit:
+                break
+        return items
+
+    def _wait_for_next(self, now: float) -> float:
+        if self.speed == 0:
+            return 0.0
+        due = (self._stream_time(self._index) - float(self._t[self._start_index])) / self.speed
+        return max(due - (now - self._wall_start), 0.0)
+
+    def _frame(self, index: int, now: float) -> Frame:
+        seq = int(self._seq[index]) + self._pass * self._seq_period
+        if self._last_seq is not None and seq > self._last_seq + 1:
+            self._stats.dropped_frames += seq - self._last_seq - 1
+        elif self._last_seq is not None and seq <= self._last_seq:
+            self._stats.resets += 1  # the recorded device restarted its sequence
+        self._last_seq = seq
+        self._stats.good_frames += 1
+        device_t_us = None
+        if self._device_t_us is not None and self._device_t_us[index] >= 0:
+            device_t_us = int(self._device_t_us[index]) + round(self._pass * self._period_s * 1e6)
+        return Frame(
+            seq=seq,
+            t=self._stream_time(index),
+            values=self._frames[index].copy(),
+            t_host=now,
+            device_t_us=device_t_us,
+        )
+
+
+def _float_option(options: dict[str, str], key: str, default: float) -> float:
+    text = options.get(key, "")
+    if text.strip() == "":
+        return default
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"replay option {key}={text!r} is not a number") from None
+
+
+def _bool_option(options: dict[str, str], key: str) -> bool:
+    text = options.get(key, "0").strip().lower()
+    if text in ("1", "true", "yes", "on"):
+        return True
+    if text in ("", "0", "false", "no", "off"):
+        return False
+    raise ValueError(f"replay option {key}={text!r} must be 0 or 1")

@@ -1,0 +1,237 @@
+"""The conditioning pipeline: raw frames in, relative smoothed signal and contacts out.
+
+:class:`Conditioner` chains, for every frame,
+
+1. the input guard: NaN/inf and implausible readings hold the last good value
+   (:mod:`~wovenskin.signal.baseline`),
+2. the spike filter, a causal median of three frames (:mod:`~wovenskin.signal.filters`),
+3. the relative change ``(C - C0) / C0``,
+4. the causal moving average,
+5. per-channel hysteresis (:mod:`~wovenskin.signal.contacts`),
+6. drift tracking of ``C0`` once per block of frames, from the spike-filtered readings,
+
+then debounces "touched" and extracts contact blobs for the whole chunk.  Frames are cut
+only at baseline-block boundaries, and every step carries its state, so feeding a stream
+one frame at a time, all at once or in any chunks gives bit-identical results.
+
+:func:`condition_recording` calibrates on the first ``calibration_s`` of a recording and
+conditions all of it, calibration frames included.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wovenskin.signal.baseline import BaselineTracker
+from wovenskin.signal.calibration import Calibration, calibrate
+from wovenskin.signal.config import ConditioningConfig
+from wovenskin.signal.contacts import Contact, ContactDetector
+from wovenskin.signal.filters import CausalMovingAverage, SpikeFilter
+
+
+@dataclass
+class ConditionedFrames:
+    """Conditioned output for ``N`` consecutive frames."""
+
+    signal: np.ndarray  # (N, R, C) float32 smoothed (C - C0) / C0
+    active: np.ndarray  # (N, R, C) bool channels in contact (after hysteresis)
+    touched: np.ndarray  # (N,) bool debounced "something touches the skin"
+    n_contacts: np.ndarray  # (N,) int64 contact blobs per frame
+    contacts: list[list[Contact]]  # N lists of blobs
+    saturated: np.ndarray  # (N, R, C) bool at full scale or implausible (held value used)
+    dead: np.ndarray  # (R, C) bool dead since calibration (never active)
+    baseline: np.ndarray  # (R, C) float64 baseline after the last frame
+    invalid: np.ndarray  # (N, R, C) bool reading was NaN/inf (last good value held)
+    index: np.ndarray  # (N,) int64 frame index since the conditioner started
+
+    def __len__(self) -> int:
+        return int(self.signal.shape[0])
+
+    @classmethod
+    def empty(cls, dead: np.ndarray, baseline: np.ndarray, start_index: int = 0):
+        """No frames, for a skin with these ``dead`` channels and ``baseline``."""
+        rows, cols = dead.shape
+        return cls(
+            signal=np.zeros((0, rows, cols), dtype=np.float32),
+            active=np.zeros((0, rows, cols), dtype=bool),
+            touched=np.zeros(0, dtype=bool),
+            n_contacts=np.zeros(0, dtype=np.int64),
+            contacts=[],
+            saturated=np.zeros((0, rows, cols), dtype=bool),
+            dead=dead.copy(),
+            baseline=baseline.copy(),
+            invalid=np.zeros((0, rows, cols), dtype=bool),
+            index=np.arange(start_index, start_index, dtype=np.int64),
+        )
+
+    @staticmethod
+    def concat(parts: list[ConditionedFrames]) -> ConditionedFrames:
+        """Join consecutive parts; ``dead`` and ``baseline`` come from the last one."""
+        if not parts:
+            raise ValueError("cannot concatenate an empty list of ConditionedFrames")
+        contacts: list[list[Contact]] = []
+        for part in parts:
+            contacts.extend(part.contacts)
+        last = parts[-1]
+        return ConditionedFrames(
+            signal=np.concatenate([p.signal for p in parts]),
+            active=np.concatenate([p.active for p in parts]),
+            touched=np.concatenate([p.touched for p in parts]),
+            n_contacts=np.concatenate([p.n_contacts for p in parts]),
+            contacts=contacts,
+            saturated=np.concatenate([p.saturated for p in parts]),
+            dead=last.dead.copy(),
+            baseline=last.baseline.copy(),
+            invalid=np.concatenate([p.invalid for p in parts]),
+            index=np.concatenate([p.index for p in parts]),
+        )
+
+
+def as_frames(raw: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``raw`` ``(N, R, C)`` or ``(R, C)`` as a new float64 ``(N, R, C)`` array.
+
+    Raises ``ValueError`` with the expected shape for anything else.
+    """
+    arr = np.asarray(raw)
+    if arr.ndim == 2:
+        arr = arr.reshape(1, *arr.shape)
+    rows, cols = shape
+    if arr.ndim != 3 or arr.shape[1] != rows or arr.shape[2] != cols:
+        raise ValueError(
+            f"expected raw frames shaped (N, {rows}, {cols}) or ({rows}, {cols}), got "
+            f"{np.shape(raw)}"
+        )
+    if arr.dtype.kind not in "fiu":
+        raise ValueError(f"raw frames must be real numbers, got dtype {arr.dtype}")
+    return arr.astype(np.float64)
+
+
+class Conditioner:
+    """Conditions a stream of raw frames with a fixed calibration (see module doc)."""
+
+    def __init__(self, calibration: Calibration, config: ConditioningConfig) -> None:
+        self.calibration = calibration
+        self.config = config
+        self._tracker = BaselineTracker(calibration, config)
+        self.shape = self._tracker.shape
+        self.dead = self._tracker.dead
+        self._spikes = SpikeFilter(self._tracker.resting_level) if config.spike_filter else None
+        self._smoother = CausalMovingAverage(config.window_frames, self.shape)
+        self._detector = ContactDetector.from_calibration(calibration.noise, self.dead, config)
+        self._next_index = 0
+
+    @property
+    def baseline(self) -> np.ndarray:
+        """Current baseline ``(R, C)`` (a copy)."""
+        return self._tracker.baseline
+
+    @property
+    def frames_processed(self) -> int:
+        return self._next_index
+
+    @property
+    def on_threshold(self) -> np.ndarray:
+        """Per-channel signal level at which a channel turns active (+inf when dead)."""
+        return self._detector.on_threshold.copy()
+
+    @property
+    def off_threshold(self) -> np.ndarray:
+        """Per-channel signal level below which an active channel turns off."""
+        return self._detector.off_threshold.copy()
+
+    def process(self, raw: np.ndarray) -> ConditionedFrames:
+        """Condition ``raw`` ``(N, R, C)`` or one frame ``(R, C)``; state carries over."""
+        x = as_frames(raw, self.shape)
+        n = x.shape[0]
+        start = self._next_index
+        if n == 0:
+            return ConditionedFrames.empty(self.dead, self.baseline, start)
+        segments = []
+        pos = 0
+        while pos < n:
+            stop = pos + min(self._tracker.frames_to_block_end, n - pos)
+            clean, invalid, saturated = self._tracker.guard(x[pos:stop])
+            if self._spikes is not None:
+                clean = self._spikes.apply(clean)
+            smoothed = self._smoother.apply(self._tracker.relative(clean))
+            active = self._detector.update_active(smoothed)
+            self._tracker.accumulate(clean, active)
+            segments.append((smoothed, active, invalid, saturated, self._detector.last_labels))
+            pos = stop
+        self._next_index += n
+        labels = _join_labels([s[4] for s in segments], [len(s[0]) for s in segments])
+        if len(segments) == 1:
+            signal, active, invalid, saturated, _ = segments[0]
+        else:
+            signal = np.concatenate([s[0] for s in segments])
+            active = np.concatenate([s[1] for s in segments])
+            lengths = [len(s[0]) for s in segments]
+            invalid = _join_flags([s[2] for s in segments], lengths, self.shape)
+            saturated = _join_flags([s[3] for s in segments], lengths, self.shape)
+        if invalid is None:
+            invalid = np.zeros(x.shape, dtype=bool)
+        if saturated is None:
+            saturated = np.zeros(x.shape, dtype=bool)
+        touched = self._detector.update_touched(active)
+        contacts = self._detector.contacts(signal, active, labels)
+        return ConditionedFrames(
+            signal=signal.astype(np.float32),
+            active=active,
+            touched=touched,
+            n_contacts=np.array([len(c) for c in contacts], dtype=np.int64),
+            contacts=contacts,
+            saturated=saturated,
+            dead=self.dead.copy(),
+            baseline=self._tracker.baseline,
+            invalid=invalid,
+            index=np.arange(start, start + n, dtype=np.int64),
+        )
+
+
+def _join_labels(labels: list[np.ndarray | None], lengths: list[int]) -> np.ndarray | None:
+    """Blob labels of consecutive segments as one array with distinct ids, if all have them.
+
+    A segment without active channels may have no labels (``None``): it contributes
+    zeros.  Returns ``None`` when no segment has labels (contacts are then labelled anew).
+    """
+    if len(labels) == 1 or all(lab is None for lab in labels):
+        return labels[0]
+    shape = next(lab.shape[1:] for lab in labels if lab is not None)
+    parts, offset = [], 0
+    for lab, length in zip(labels, lengths, strict=True):
+        if lab is None:
+            parts.append(np.zeros((length, *shape), dtype=np.int64))
+            continue
+        lab = lab.astype(np.int64)
+        parts.append(np.where(lab > 0, lab + offset, 0))
+        offset += int(lab.max())
+    return np.concatenate(parts)
+
+
+def _join_flags(flags: list[np.ndarray | None], lengths: list[int], shape) -> np.ndarray | None:
+    """Concatenate per-segment flag arrays, where ``None`` stands for all-False."""
+    if all(f is None for f in flags):
+        return None
+    return np.concatenate(
+        [
+            f if f is not None else np.zeros((length, *shape), dtype=bool)
+            for f, length in zip(flags, lengths, strict=True)
+        ]
+    )
+
+
+def condition_recording(
+    raw: np.ndarray, config: ConditioningConfig
+) -> tuple[Calibration, ConditionedFrames]:
+    """Calibrate on the first ``calibration_s`` of ``raw`` ``(N, R, C)`` and condition it all.
+
+    Raises ``ValueError`` when the recording is malformed or shorter than the calibration.
+    """
+    raw = np.asarray(raw)
+    if raw.ndim != 3:
+        raise ValueError(f"a recording must be shaped (N, rows, cols), got {raw.shape}")
+    calibration = calibrate(raw[: config.calibration_frames], config)
+    conditioner = Conditioner(calibration, config)
+    return calibration, conditioner.process(raw)

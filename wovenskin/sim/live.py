@@ -1,0 +1,342 @@
+"""The live simulated skin: a :class:`~wovenskin.skin.source.SkinSource` backed by the simulator.
+
+Owns :class:`SimulatedSkinSource` (``open_source("sim")``).  A background thread renders a
+simulated person performing random gestures, invalid touches and idle gaps forever (after
+at least one contact-free second), a little ahead of the wall clock; :meth:`poll` hands out
+the frames that are due.  ``speed=1`` paces frames in real time, ``speed=2`` twice as fast,
+``speed=0`` as fast as the consumer polls.  :meth:`perform` queues a specific gesture next
+(guided recording, dashboards) and :meth:`current_label` / :attr:`events` give the ground
+truth of what the simulated person is doing.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from wovenskin.gestures import CLASS_NAMES
+from wovenskin.sim.motion import LEAD_S
+from wovenskin.sim.person import Person
+from wovenskin.sim.physics import SkinModel, SkinPhysics
+from wovenskin.sim.stream import INITIAL_IDLE_S, EventScheduler, StreamEvent, parse_request
+from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
+from wovenskin.skin.layout import (
+    DEFAULT_COL_PITCH_MM,
+    DEFAULT_ROW_PITCH_MM,
+    DEFAULT_SAMPLE_RATE_HZ,
+    SkinLayout,
+)
+
+OPTIONS = ("seed", "speed", "rows", "cols", "row_pitch", "col_pitch", "gestures", "idle", "invalid")
+"""Keys understood by :meth:`SimulatedSkinSource.from_options`."""
+
+_IDLE_CHUNK_S = 0.05  # idle is rendered in small pieces so that requests start promptly
+_LOOKAHEAD_S = 0.25  # how far ahead of the wall clock frames are rendered
+_UNPACED_BUFFER_S = 1.0  # speed=0: frames kept ready for the consumer
+
+
+@dataclass
+class _Upcoming:
+    request: str | None
+    contact_frame: int  # stream frame of the next event's first contact
+
+
+class SimulatedSkinSource:
+    """A simulated skin and person streaming frames paced to the wall clock."""
+
+    def __init__(
+        self,
+        seed: int | None = None,
+        speed: float = 1.0,
+        layout: SkinLayout | None = None,
+        gestures: list[str] | None = None,
+        idle_s: tuple[float, float] = (0.3, 1.5),
+        invalid_fraction: float = 0.25,
+        physics: SkinPhysics | None = None,
+        person: Person | None = None,
+        sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+        max_batch: int = 200,
+    ) -> None:
+        """``max_batch``: most frames one :meth:`poll` returns when ``speed=0``."""
+        if not np.isfinite(speed) or speed < 0:
+            raise ValueError(f"sim speed must be >= 0 (0 = as fast as polled), got {speed}")
+        self.seed = int(seed) if seed is not None else int(np.random.SeedSequence().entropy % 2**31)
+        self.speed = float(speed)
+        self.max_batch = max(1, int(max_batch))
+        self.layout = layout if layout is not None else SkinLayout()
+        fs = float(sample_rate_hz)
+        rng = np.random.default_rng(self.seed)
+        self.physics = physics if physics is not None else SkinPhysics.sample(rng)
+        self.person = person if person is not None else Person.sample(rng)
+        self._model = SkinModel(self.physics, self.layout, int(rng.integers(2**31)), fs)
+        self._scheduler = EventScheduler(
+            rng, self.person, self.layout, gestures, invalid_fraction, idle_s, fs
+        )
+        self._fs = fs
+        self._rng = rng
+        self._info = SkinInfo(
+            rows=self.layout.rows,
+            cols=self.layout.cols,
+            sample_rate_hz=fs,
+            firmware="wovenskin-sim",
+            device_id=f"sim-seed-{self.seed}",
+            channel_order="row-major",
+            units="pF",
+            source="sim",
+            row_pitch_mm=self.layout.row_pitch_mm,
+            col_pitch_mm=self.layout.col_pitch_mm,
+        )
+        self._cond = threading.Condition()
+        self._buffer: deque[np.ndarray] = deque()  # rendered, not yet delivered frames
+        self._buffer_first_seq = 0
+        self._rendered = 0  # frames rendered so far (stream frames)
+        self._delivered = 0
+        self._requests: deque[str] = deque()
+        self._events: list[StreamEvent] = []
+        self._notices: list[SourceEvent] = []
+        self._stats = SourceStats()
+        self._upcoming = _Upcoming(None, int(round(rng.uniform(*INITIAL_IDLE_S) * fs)))
+        self._earliest_contact = self._upcoming.contact_frame
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._closed = False
+        self._paused = False
+        self._clock_origin = 0.0  # wall time at which stream time 0 was (shifted by pauses)
+        self._paused_at = 0.0
+
+    # -- construction from a spec -------------------------------------------------------------
+    @classmethod
+    def from_options(cls, options: dict[str, str]) -> SimulatedSkinSource:
+        """Build from ``open_source`` options (all values are strings); see :data:`OPTIONS`."""
+        options = dict(options)
+        # "sim:gestures=swipe_up,push" arrives split at the comma: gather stray class names.
+        stray = [k for k, v in options.items() if k in CLASS_NAMES and v == ""]
+        for k in stray:
+            del options[k]
+        unknown = sorted(set(options) - set(OPTIONS))
+        if unknown:
+            raise ValueError(f"unknown sim option(s) {unknown}; known: {', '.join(OPTIONS)}")
+
+        def number(key: str, kind, default):
+            if key not in options or options[key] == "":
+                return default
+            try:
+                return kind(options[key])
+            except ValueError:
+                raise ValueError(
+                    f"sim option {key} must be a number, got {options[key]!r}"
+                ) from None
+
+        gestures = None
+        if "gestures" in options or stray:
+            text = options.get("gestures", "")
+            for sep in "+|;/":
+                text = text.replace(sep, ",")
+            gestures = [g.strip() for g in text.split(",") if g.strip()] + stray
+            for g in gestures:
+                parse_request(g)
+        idle = (0.3, 1.5)
+        if options.get("idle"):
+            parts = options["idle"].replace("..", "-").split("-")
+            try:
+                values = [float(p) for p in parts if p.strip()]
+            except ValueError:
+                raise ValueError(
+                    f"sim option idle must be SECONDS or LOW-HIGH, got {options['idle']!r}"
+                ) from None
+            if len(values) not in (1, 2):
+                raise ValueError(
+                    f"sim option idle must be SECONDS or LOW-HIGH, got {options['idle']!r}"
+                )
+            idle = (values[0], values[-1])
+        layout = SkinLayout(
+            rows=number("rows", int, 10),
+            cols=number("cols", int, 10),
+            row_pitch_mm=number("row_pitch", float, DEFAULT_ROW_PITCH_MM),
+            col_pitch_mm=number("col_pitch", float, DEFAULT_COL_PITCH_MM),
+        )
+        return cls(
+            seed=number("seed", int, None),
+            speed=number("speed", float, 1.0),
+            layout=layout,
+            gestures=gestures,
+            idle_s=idle,
+            invalid_fraction=number("invalid", float, 0.25),
+        )
+
+    # -- SkinSource ---------------------------------------------------------------------------
+    @property
+    def info(self) -> SkinInfo:
+        return self._info
+
+    def start(self) -> None:
+        with self._cond:
+            if self._closed:
+                raise RuntimeError("the simulated skin was closed; open a new source")
+            if self._thread is not None:
+                return
+            self._clock_origin = time.monotonic()
+            self._stop.clear()
+            self._stats.connected = True
+            self._notices.append(
+                SourceEvent("connected", "simulated skin started", time.monotonic(), self._info)
+            )
+            self._thread = threading.Thread(target=self._produce, name="sim-skin", daemon=True)
+            self._thread.start()
+
+    def poll(self, timeout: float = 0.05) -> list[Frame | SourceEvent]:
+        deadline = time.monotonic() + max(0.0, timeout)
+        out: list[Frame | SourceEvent] = []
+        with self._cond:
+            if self._thread is None:
+                return out
+            while True:
+                out.extend(self._notices)
+                self._notices.clear()
+                now = time.monotonic()
+                due = self._due_frames(now)
+                while self._buffer and self._delivered < due:
+                    values = self._buffer.popleft()
+                    seq = self._delivered
+                    out.append(Frame(seq=seq, t=seq / self._fs, values=values, t_host=now))
+                    self._delivered += 1
+                    self._stats.good_frames += 1
+                if out:
+                    self._cond.notify_all()  # the producer may top up the buffer
+                    return out
+                if now >= deadline or self._stop.is_set():
+                    return out
+                self._cond.wait(min(deadline - now, self._wait_hint(now)))
+
+    def stats(self) -> SourceStats:
+        with self._cond:
+            return self._stats.copy()
+
+    def send_command(self, command: str) -> None:
+        """``stop`` pauses the stream (and its clock), ``start`` resumes; ``recalibrate``: no-op."""
+        command = command.strip().lower()
+        with self._cond:
+            if command == "stop" and not self._paused:
+                self._paused, self._paused_at = True, time.monotonic()
+            elif command == "start" and self._paused:
+                self._paused = False
+                self._clock_origin += time.monotonic() - self._paused_at
+            elif command not in ("start", "stop", "recalibrate"):
+                raise ValueError(
+                    f"unknown skin command {command!r}: use start, stop or recalibrate"
+                )
+            self._cond.notify_all()
+
+    def close(self) -> None:
+        with self._cond:
+            thread, self._thread = self._thread, None
+            self._closed = True
+            self._stop.set()
+            self._stats.connected = False
+            self._cond.notify_all()
+        if thread is not None:
+            thread.join(timeout=5.0)
+
+    # -- ground truth and requests --------------------------------------------------------------
+    def perform(self, name: str) -> None:
+        """Queue ``name`` (a class name, or ``invalid:KIND``) as the person's next event."""
+        parse_request(name)
+        with self._cond:
+            self._requests.append(name)
+            self._cond.notify_all()
+
+    @property
+    def events(self) -> list[StreamEvent]:
+        """Events that have begun by the last delivered frame (stream clock)."""
+        with self._cond:
+            now = self._delivered / self._fs
+            return [e for e in self._events if e.start_s <= now]
+
+    def current_label(self) -> str | None:
+        """What the simulated person is doing at the last delivered frame (None: nothing)."""
+        with self._cond:
+            if self._delivered == 0:
+                return None
+            t = (self._delivered - 1) / self._fs
+            for e in reversed(self._events):
+                if e.start_s <= t < e.end_s:
+                    return e.label
+            return None
+
+    # -- pacing -----------------------------------------------------------------------------
+    def _due_frames(self, now: float) -> int:
+        """Frames that should have been delivered by wall time ``now``."""
+        if self.speed == 0:
+            return self._delivered + self.max_batch
+        clock = (self._paused_at if self._paused else now) - self._clock_origin
+        return int(clock * self.speed * self._fs) + 1
+
+    def _wait_hint(self, now: float) -> float:
+        if self.speed == 0 or self._paused:
+            return 0.05
+        next_due = self._clock_origin + self._delivered / (self.speed * self._fs)
+        return max(0.001, next_due - now)
+
+    def _render_target(self) -> int:
+        if self.speed == 0:
+            return self._delivered + int(_UNPACED_BUFFER_S * self._fs)
+        return self._due_frames(time.monotonic()) + int(_LOOKAHEAD_S * self.speed * self._fs)
+
+    # -- producer thread --------------------------------------------------------------------------
+    def _produce(self) -> None:
+        try:
+            while not self._stop.is_set():
+                with self._cond:
+                    if self._paused or self._rendered >= self._render_target():
+                        self._cond.wait(0.02)
+                        continue
+                    request = self._requests.popleft() if self._requests else None
+                frames = self._render_next(request)
+                with self._cond:
+                    self._buffer.extend(frames)
+                    self._rendered += len(frames)
+                    self._cond.notify_all()
+        except Exception as exc:  # never let the consumer hang on a dead producer
+            with self._cond:
+                message = f"simulator stopped: {type(exc).__name__}: {exc}"
+                self._stats.last_error = message
+                self._notices.append(SourceEvent("error", message, time.monotonic()))
+                self._cond.notify_all()
+
+    def _render_next(self, request: str | None) -> np.ndarray:
+        """Render the next piece: an idle chunk, or a whole performance once it is due."""
+        fs = self._fs
+        lead = int(round(LEAD_S * fs))
+        upcoming = self._upcoming
+        if request is not None:
+            if upcoming.request is not None:
+                with self._cond:
+                    self._requests.appendleft(request)  # keep it for the event after next
+            else:
+                upcoming.request = request
+                upcoming.contact_frame = max(self._earliest_contact, self._rendered + lead)
+        start = upcoming.contact_frame - lead
+        if self._rendered < start:
+            n = min(start - self._rendered, int(round(_IDLE_CHUNK_S * fs)))
+            return self._model.render_idle(n)
+        performance = self._scheduler.next_performance(upcoming.request)
+        offset = self._rendered / fs  # the performance's frame 0 on the stream clock
+        event = StreamEvent(
+            performance.label,
+            performance.invalid_kind,
+            offset + performance.event_start_s,
+            offset + performance.event_end_s,
+        )
+        frames = self._model.render(performance.contacts, performance.n_frames, performance.bursts)
+        end_frame = int(round(event.end_s * fs))
+        gap = int(round(self._scheduler.idle_gap_s() * fs))
+        min_gap = int(round(self._scheduler.idle_s[0] * fs))
+        with self._cond:
+            self._events.append(event)
+            self._upcoming = _Upcoming(None, end_frame + gap)
+            self._earliest_contact = end_frame + max(min_gap, 2 * lead)
+        return frames

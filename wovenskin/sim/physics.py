@@ -1,0 +1,645 @@
+"""Capacitive physics of the woven skin: from contact ellipses to raw channel capacitances.
+
+Owns :class:`SkinPhysics` (every physical parameter of a simulated skin, each with its
+meaning and the range :meth:`SkinPhysics.sample` draws it from), the contact primitives
+:class:`ContactTrack` (an elliptical contact over time: fingertip, palm, forearm, sleeve)
+and :class:`NoiseBurst` (electrical interference), and :class:`SkinModel`, which renders
+contacts into raw frames ``(T, rows, cols)`` float32 in pF, ``[row, col]`` as in
+:mod:`wovenskin.skin.layout`, vectorised over time and in consecutive chunks that share
+one continuous state (filters, drift, mains phase).
+
+Signal chain of the channel at ``[r, c]``, frame ``n``:
+
+1. *Pressure.*  Each contact is an ellipse (centre, semi-axes ``a >= b``, angle, force
+   ``F``) with the Hertz-like profile ``p = p0 sqrt(1 - rho^2)``, ``p0 = 1.5 F / (pi a b)``,
+   which integrates to ``F``.  Pressures of all contacts add.
+2. *Local response* ``1 - exp(-p / pressure_scale_kpa)`` (saturating toward ~100 kPa),
+   weighted by the in-channel sensitivity (lower near the channel border) and averaged over
+   ``S x S`` supersample points of the channel rectangle (``col_pitch x row_pitch``); the
+   default ``S = 8`` keeps the sampling ripple of a sliding fingertip's total signal under
+   2 % (4 x 4 points give ~6 %).
+3. *Fabric mechanics:* a fast first-order lag plus a slow viscoelastic creep component.
+4. *Proximity:* a small fringe-field response around each contact, present slightly before
+   landing and after lift-off (the hand hovering).
+5. *Gain:* per-skin gain (pF at full coverage and saturation) times a per-channel gain.
+6. *Crosstalk* along the electrode lines: a fraction of each channel's change appears on
+   every other channel of its row and of its column.
+7. Per-channel *baseline* with thermal *drift* (common mode and per channel,
+   Ornstein-Uhlenbeck), *mains* pickup sampled at a per-channel scan-time offset (stronger
+   where a hand touches: the body is an antenna), white *noise*, electrical noise *bursts*
+   and rare one-frame single-channel *glitches*.
+8. Optional firmware moving average and ADC quantisation.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field, fields, replace
+
+import numpy as np
+from scipy.ndimage import distance_transform_edt
+from scipy.signal import lfilter
+
+from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
+
+
+def _param(default: float, low: float, high: float, unit: str, doc: str, log: bool = False):
+    """A physics parameter with its range (used by :meth:`SkinPhysics.sample`) and meaning."""
+    return field(
+        default=default, metadata={"range": (low, high), "unit": unit, "doc": doc, "log": log}
+    )
+
+
+@dataclass(frozen=True)
+class SkinPhysics:
+    """All physical parameters of one simulated skin, with the default being a typical skin.
+
+    Each field's metadata holds ``range`` (what :meth:`sample` draws from), ``unit`` and
+    ``doc``; :meth:`describe` prints them as a table.
+    """
+
+    # -- baseline and gain ---------------------------------------------------------------
+    c0_pf: float = _param(20.0, 10.0, 40.0, "pF", "nominal no-contact channel capacitance")
+    baseline_spread: float = _param(
+        0.15, 0.05, 0.30, "1", "relative sd of per-channel baselines around c0 (lognormal)"
+    )
+    gain_pf: float = _param(
+        4.0, 2.0, 8.0, "pF", "change of a fully covered channel at saturating pressure", log=True
+    )
+    channel_gain_spread: float = _param(
+        0.15, 0.05, 0.30, "1", "relative sd of per-channel gain (lognormal)"
+    )
+    gain_gradient: float = _param(
+        0.0, 0.0, 0.3, "1", "linear gain change across the skin (uneven tension of the wrap)"
+    )
+    dead_channel_fraction: float = _param(
+        0.0, 0.0, 0.03, "1", "share of channels that barely respond (a broken thread)"
+    )
+    channel_edge_sensitivity: float = _param(
+        0.75, 0.5, 1.0, "1", "sensitivity at a channel's border relative to its centre"
+    )
+    pressure_scale_kpa: float = _param(
+        30.0, 18.0, 45.0, "kPa", "local response is 1 - exp(-p / scale); ~100 kPa saturates"
+    )
+    # -- fabric mechanics ----------------------------------------------------------------
+    mechanical_tau_s: float = _param(
+        0.02, 0.01, 0.03, "s", "first-order lag of the fabric's compression"
+    )
+    creep_fraction: float = _param(
+        0.05, 0.0, 0.12, "1", "share of the response that follows slow viscoelastic creep"
+    )
+    creep_tau_s: float = _param(0.5, 0.2, 1.0, "s", "time constant of the creep")
+    # -- fringe field --------------------------------------------------------------------
+    proximity_fraction: float = _param(
+        0.03,
+        -0.015,
+        0.06,
+        "1",
+        "fringe-field response at a contact's centre, share of gain (< 0: the grounded hand "
+        "shunts the field of a mutual-capacitance readout)",
+    )
+    proximity_sigma_mm: float = _param(
+        6.0, 3.0, 10.0, "mm", "reach of the fringe field beyond a contact's edge"
+    )
+    hover_tau_s: float = _param(
+        0.03, 0.01, 0.06, "s", "how early before landing / late after lift the hand is sensed"
+    )
+    # -- crosstalk -----------------------------------------------------------------------
+    row_crosstalk: float = _param(
+        0.02, 0.0, 0.05, "1", "share of a channel's change leaking into every channel of its row"
+    )
+    col_crosstalk: float = _param(
+        0.02, 0.0, 0.05, "1", "share of a channel's change leaking into every channel of its col"
+    )
+    # -- noise ---------------------------------------------------------------------------
+    noise_pf: float = _param(0.01, 0.003, 0.03, "pF", "white noise sd per channel", log=True)
+    mains_hz: float = _param(50.0, 49.8, 60.2, "Hz", "mains frequency (50 or 60, +-0.2)")
+    mains_pf: float = _param(0.01, 0.0, 0.04, "pF", "mains pickup amplitude of a channel")
+    mains_spread: float = _param(
+        0.5, 0.2, 0.8, "1", "relative sd of the per-channel mains pickup amplitude"
+    )
+    mains_third_harmonic: float = _param(
+        0.2, 0.0, 0.5, "1", "third-harmonic amplitude relative to the fundamental"
+    )
+    body_mains_pf: float = _param(
+        0.03, 0.0, 0.1, "pF", "extra mains pickup on channels under/near a touching hand"
+    )
+    scan_time_s: float = _param(
+        0.001, 0.0005, 0.001, "s", "one scan of all channels; offsets the sampling time"
+    )
+    drift_common_per_min: float = _param(
+        0.004, 0.001, 0.01, "1", "rms change of the common thermal drift in 1 min, share of C"
+    )
+    drift_channel_per_min: float = _param(
+        0.001, 0.0003, 0.004, "1", "rms change of per-channel drift in 1 min, share of C"
+    )
+    drift_tau_s: float = _param(300.0, 120.0, 900.0, "s", "correlation time of the drift")
+    glitch_rate_hz: float = _param(
+        0.05, 0.0, 0.3, "1/s", "one-frame single-channel spikes per second (whole skin)"
+    )
+    glitch_pf: float = _param(2.0, 0.5, 5.0, "pF", "typical magnitude of a glitch")
+    burst_pf: float = _param(
+        0.5, 0.15, 2.0, "pF", "typical amplitude of an electrical noise burst", log=True
+    )
+    # -- readout -------------------------------------------------------------------------
+    firmware_average_s: float = _param(
+        0.0, 0.0, 0.1, "s", "firmware moving-average window (0 = raw; often 0)"
+    )
+    adc_lsb_pf: float = _param(0.0, 0.0, 0.005, "pF", "ADC quantisation step (0 = none)")
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not math.isfinite(value) or (value < 0 and f.metadata["range"][0] >= 0):
+                raise ValueError(f"skin physics {f.name} must be finite and >= 0, got {value}")
+        for name in ("c0_pf", "gain_pf", "pressure_scale_kpa", "mechanical_tau_s", "mains_hz"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"skin physics {name} must be > 0")
+
+    @classmethod
+    def sample(cls, rng: np.random.Generator) -> SkinPhysics:
+        """A random skin: every parameter drawn within its documented range."""
+        values: dict[str, float] = {}
+        for f in fields(cls):
+            low, high = f.metadata["range"]
+            if f.metadata["log"]:
+                values[f.name] = float(np.exp(rng.uniform(np.log(low), np.log(high))))
+            else:
+                values[f.name] = float(rng.uniform(low, high))
+        values["mains_hz"] = float(rng.choice([50.0, 60.0]) + rng.uniform(-0.2, 0.2))
+        # Most readouts stream raw values, some average in firmware, some quantise coarsely.
+        if rng.random() < 0.6:
+            values["firmware_average_s"] = 0.0
+        if rng.random() < 0.5:
+            values["adc_lsb_pf"] = 0.0
+        if rng.random() < 0.6:
+            values["dead_channel_fraction"] = 0.0
+        return cls(**values)
+
+    def without_noise(self) -> SkinPhysics:
+        """The same skin with every random disturbance off (noise, mains, drift, glitches)."""
+        return replace(
+            self,
+            noise_pf=0.0,
+            mains_pf=0.0,
+            body_mains_pf=0.0,
+            drift_common_per_min=0.0,
+            drift_channel_per_min=0.0,
+            glitch_rate_hz=0.0,
+            adc_lsb_pf=0.0,
+        )
+
+    def to_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> SkinPhysics:
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(f"unknown skin physics parameter(s): {', '.join(unknown)}")
+        return cls(**{k: float(v) for k, v in d.items()})
+
+    @classmethod
+    def describe(cls) -> str:
+        """A plain-text table of every parameter: name, default, range, unit and meaning."""
+        lines = []
+        for f in fields(cls):
+            low, high = f.metadata["range"]
+            lines.append(
+                f"{f.name:24s} {f.default:<8g} [{low:g}, {high:g}] {f.metadata['unit']:4s} "
+                f"{f.metadata['doc']}"
+            )
+        return "\n".join(lines)
+
+
+CONTACT_KINDS = ("fingertip", "finger", "palm", "forearm", "sleeve", "hand_back")
+
+
+@dataclass
+class ContactTrack:
+    """One elliptical contact over time, one value per frame at the sample rate.
+
+    ``x_mm``/``y_mm`` place the centre (x right, y down from the top-left corner of the
+    sensing area); ``force_n`` is the normal force (0 = not touching: the position is then
+    where the hand hovers); ``semi_major_mm``/``semi_minor_mm`` are the semi-axes of the
+    contact ellipse and ``angle_rad`` the direction of its major axis, measured from +x
+    toward +y.  Shape arguments may be scalars; they are broadcast to the track length.
+    """
+
+    x_mm: np.ndarray
+    y_mm: np.ndarray
+    force_n: np.ndarray
+    semi_major_mm: np.ndarray | float
+    semi_minor_mm: np.ndarray | float
+    angle_rad: np.ndarray | float = 0.0
+    kind: str = "fingertip"
+    finger: str = ""
+
+    def __post_init__(self) -> None:
+        force = np.asarray(self.force_n, dtype=np.float64)
+        if force.ndim != 1:
+            raise ValueError(f"contact force must be a 1-D array, got shape {force.shape}")
+        n = force.shape[0]
+        self.force_n = force
+        for name in ("x_mm", "y_mm", "semi_major_mm", "semi_minor_mm", "angle_rad"):
+            value = np.asarray(getattr(self, name), dtype=np.float64)
+            if value.ndim == 0:
+                value = np.full(n, float(value))
+            if value.shape != (n,):
+                raise ValueError(f"contact {name} has shape {value.shape}, expected ({n},)")
+            setattr(self, name, value)
+        arrays = (self.x_mm, self.y_mm, force, self.semi_major_mm, self.semi_minor_mm)
+        if not all(np.isfinite(a).all() for a in (*arrays, self.angle_rad)):
+            raise ValueError("contact track contains NaN or infinite values")
+        if (force < 0).any():
+            raise ValueError("contact force must be >= 0")
+        if (self.semi_minor_mm <= 0).any() or (self.semi_major_mm < self.semi_minor_mm).any():
+            raise ValueError("contact semi-axes must satisfy 0 < semi_minor <= semi_major")
+        if self.kind not in CONTACT_KINDS:
+            raise ValueError(f"unknown contact kind {self.kind!r}; known: {CONTACT_KINDS}")
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.force_n.shape[0])
+
+    @property
+    def touching(self) -> np.ndarray:
+        """Boolean mask of the frames in contact."""
+        return self.force_n > 0
+
+    def padded(self, before: int, after: int) -> ContactTrack:
+        """The same contact with ``before``/``after`` extra frames of hovering (no force)."""
+
+        def pad(a: np.ndarray, zero: bool = False) -> np.ndarray:
+            if zero:
+                return np.pad(a, (before, after))
+            return np.pad(a, (before, after), mode="edge")
+
+        return ContactTrack(
+            pad(self.x_mm),
+            pad(self.y_mm),
+            pad(self.force_n, zero=True),
+            pad(self.semi_major_mm),
+            pad(self.semi_minor_mm),
+            pad(self.angle_rad),
+            self.kind,
+            self.finger,
+        )
+
+
+@dataclass(frozen=True)
+class NoiseBurst:
+    """Electrical interference over many electrode lines for a short time.
+
+    ``start_s`` is relative to frame 0 of the tracks it is rendered with; ``strength``
+    scales the skin's own :attr:`SkinPhysics.burst_pf`; ``line_fraction`` is the share of
+    rows and of columns that pick it up; ``frequency_hz`` the (aliased) interference tone.
+    """
+
+    start_s: float
+    duration_s: float
+    strength: float = 1.0
+    line_fraction: float = 0.6
+    frequency_hz: float = 30.0
+
+    def to_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
+def hertz_pressure_kpa(
+    dx: np.ndarray, dy: np.ndarray, a: np.ndarray, b: np.ndarray, angle: np.ndarray, force
+):
+    """Pressure (kPa) of an elliptical Hertz-like contact at offsets ``dx, dy`` (mm).
+
+    ``a, b, angle, force`` broadcast against ``dx, dy``; the profile integrates to ``force``.
+    """
+    cos, sin = np.cos(angle), np.sin(angle)
+    u = (dx * cos + dy * sin) / a
+    v = (dy * cos - dx * sin) / b
+    inside = np.maximum(1.0 - u * u - v * v, 0.0)
+    p0_kpa = 1.5e3 * force / (np.pi * a * b)  # N/mm^2 = MPa -> kPa
+    return p0_kpa * np.sqrt(inside)
+
+
+def _ou_sigma(rms_change_per_min: float, tau_s: float) -> float:
+    """Stationary sd of an Ornstein-Uhlenbeck process with the given rms change over 60 s."""
+    return rms_change_per_min / math.sqrt(2.0 * (1.0 - math.exp(-60.0 / tau_s)))
+
+
+class SkinModel:
+    """Renders contacts into raw frames of one simulated skin with a continuous state.
+
+    The skin's static properties (per-channel baselines, gains, mains pickup, scan
+    offsets) are drawn once from ``seed``; every call to :meth:`render` continues the
+    previous one (filters, drift, mains phase, firmware average), so a long stream can be
+    rendered chunk by chunk.  Rendering is deterministic for a seed and call sequence.
+    """
+
+    def __init__(
+        self,
+        physics: SkinPhysics | None = None,
+        layout: SkinLayout | None = None,
+        seed: int = 0,
+        sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+        supersample: int = 8,
+    ) -> None:
+        if sample_rate_hz <= 0:
+            raise ValueError(f"sample rate must be positive, got {sample_rate_hz}")
+        if supersample < 1:
+            raise ValueError(f"supersample must be >= 1, got {supersample}")
+        self.physics = physics if physics is not None else SkinPhysics()
+        self.layout = layout if layout is not None else SkinLayout()
+        self.sample_rate_hz = float(sample_rate_hz)
+        self.supersample = int(supersample)
+        phys, lay = self.physics, self.layout
+        shape = lay.shape
+        static = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x51C])
+        self._rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0xD15])
+
+        self.baseline_pf = phys.c0_pf * static.lognormal(0.0, phys.baseline_spread, shape)
+        gain = phys.gain_pf * static.lognormal(0.0, phys.channel_gain_spread, shape)
+        direction = static.uniform(0, 2 * np.pi)
+        xx, yy = lay.channel_centers_mm()
+        across = (xx - lay.width_mm / 2) * np.cos(direction)
+        across += (yy - lay.height_mm / 2) * np.sin(direction)
+        gain *= 1.0 + phys.gain_gradient * across / max(np.abs(across).max(), 1e-9)
+        dead = static.random(shape) < phys.dead_channel_fraction
+        self.channel_gain_pf = np.where(dead, 0.05 * gain, gain)
+        self._noise_sd = phys.noise_pf * static.lognormal(0.0, 0.2, shape)
+        self._mains_amp = phys.mains_pf * static.lognormal(0.0, phys.mains_spread, shape)
+        scan_order = static.permutation(lay.channels).reshape(shape)
+        self._scan_offset_s = scan_order / lay.channels * phys.scan_time_s
+        self._mains_phase = static.uniform(0, 2 * np.pi)
+        self._third_phase = static.uniform(0, 2 * np.pi)
+
+        s = self.supersample
+        self._dx = lay.col_pitch_mm / s
+        self._dy = lay.row_pitch_mm / s
+        self._px, self._py = lay.cols * s, lay.rows * s
+        frac = (np.arange(s) + 0.5) / s - 0.5
+        edge = phys.channel_edge_sensitivity
+        profile = edge + (1.0 - edge) * np.cos(np.pi * frac) ** 2
+        weight = np.outer(profile, profile)
+        self._sub_weight = weight / weight.mean()  # (s, s): full coverage -> mean 1
+        self._centers_x, self._centers_y = lay.channel_centers_mm()
+
+        self.frames_rendered = 0
+        channels = lay.channels
+        self._lag_state = np.zeros((1, channels))
+        self._creep_state = np.zeros((1, channels))
+        self._drift_common_sigma = _ou_sigma(phys.drift_common_per_min, phys.drift_tau_s)
+        self._drift_channel_sigma = _ou_sigma(phys.drift_channel_per_min, phys.drift_tau_s)
+        self._drift_common = np.array([static.normal(0.0, self._drift_common_sigma)])
+        self._drift_channel = static.normal(0.0, self._drift_channel_sigma, channels)
+        self._average_history: np.ndarray | None = None
+
+    # -- public -----------------------------------------------------------------------
+    @property
+    def time_s(self) -> float:
+        """Stream time of the next frame to render."""
+        return self.frames_rendered / self.sample_rate_hz
+
+    def render(
+        self,
+        contacts: Sequence[ContactTrack] = (),
+        n_frames: int | None = None,
+        bursts: Sequence[NoiseBurst] = (),
+        offset: int = 0,
+    ) -> np.ndarray:
+        """Render frames ``offset .. offset + n_frames`` of ``contacts`` (and ``bursts``).
+
+        Frame 0 of the tracks and of the bursts' ``start_s`` is the track start; rendering
+        a long track in pieces (increasing ``offset``) gives the same result as rendering it
+        at once.  Tracks shorter than the requested range hover with no force.  Returns
+        ``(n_frames, rows, cols)`` float32 pF and advances the model's state.
+        """
+        contacts = list(contacts)
+        for c in contacts:
+            if not isinstance(c, ContactTrack):
+                raise TypeError(f"contacts must be ContactTrack objects, got {type(c).__name__}")
+        if n_frames is None:
+            n_frames = max((c.n_frames for c in contacts), default=0) - offset
+        if n_frames < 0 or offset < 0:
+            raise ValueError(f"cannot render {n_frames} frames at offset {offset}")
+        n = int(n_frames)
+        rows, cols = self.layout.shape
+        if n == 0:
+            return np.zeros((0, rows, cols), dtype=np.float32)
+
+        pressure = self.pressure_response(contacts, n, offset).reshape(n, -1)
+        lagged = self._mechanics(pressure).reshape(n, rows, cols)
+        proximity, body = self._proximity(contacts, n, offset)
+        change = (lagged + proximity) * self.channel_gain_pf
+        change = self._crosstalk(change)
+
+        t = (self.frames_rendered + np.arange(n)) / self.sample_rate_hz
+        frames = self._baseline_with_drift(n) + change
+        frames += self._mains(t, body)
+        frames += self._noise_sd * self._rng.standard_normal((n, rows, cols))
+        for burst in bursts:
+            self._add_burst(frames, burst, offset)
+        self._add_glitches(frames)
+        frames = self._firmware_average(frames)
+        if self.physics.adc_lsb_pf > 0:
+            frames = np.round(frames / self.physics.adc_lsb_pf) * self.physics.adc_lsb_pf
+        self.frames_rendered += n
+        return frames.astype(np.float32)
+
+    def render_idle(self, n_frames: int) -> np.ndarray:
+        """``n_frames`` without contact (baseline, drift and noise only)."""
+        return self.render((), n_frames)
+
+    def pressure_response(
+        self, contacts: Sequence[ContactTrack], n_frames: int, offset: int = 0
+    ) -> np.ndarray:
+        """Stateless local response ``(n_frames, rows, cols)`` in [0, 1] before the lag.
+
+        The channel-averaged, sensitivity-weighted ``1 - exp(-p / pressure_scale)``: 1 means
+        the channel is fully covered at saturating pressure.
+        """
+        rows, cols = self.layout.shape
+        out = np.zeros((n_frames, rows, cols))
+        active = [c for c in contacts if c.touching[offset : offset + n_frames].any()]
+        if not active:
+            return out
+        touching_any = np.zeros(n_frames, dtype=bool)
+        for c in active:
+            seg = c.touching[offset : offset + n_frames]
+            touching_any[: seg.shape[0]] |= seg
+        frame_idx = np.flatnonzero(touching_any)
+        slot = np.full(n_frames, -1)
+        slot[frame_idx] = np.arange(frame_idx.size)
+        py, px = self._py, self._px
+        image = np.zeros(frame_idx.size * py * px + 1)  # last element: sink for off-skin points
+        for c in active:
+            self._splat(c, offset, n_frames, slot, image)
+        pressure = image[:-1].reshape(frame_idx.size, py, px)
+        s = self.supersample
+        local = -np.expm1(-pressure / self.physics.pressure_scale_kpa)
+        local = local.reshape(frame_idx.size, rows, s, cols, s) * self._sub_weight[:, None, :]
+        out[frame_idx] = local.mean(axis=(2, 4))
+        return out
+
+    # -- internals --------------------------------------------------------------------
+    def _splat(
+        self, c: ContactTrack, offset: int, n: int, slot: np.ndarray, image: np.ndarray
+    ) -> None:
+        """Add one contact's pressure at the supersample points near it into ``image``."""
+        local_frames = np.flatnonzero(c.touching[offset : offset + n])
+        k = local_frames + offset
+        cx, cy = c.x_mm[k], c.y_mm[k]
+        a, b = c.semi_major_mm[k], c.semi_minor_mm[k]
+        reach = float(a.max())
+        hx = int(math.ceil(reach / self._dx)) + 1
+        hy = int(math.ceil(reach / self._dy)) + 1
+        px, py = self._px, self._py
+        ix0 = np.clip(np.round(cx / self._dx - 0.5), -hx - 1, px + hx).astype(np.int64)
+        iy0 = np.clip(np.round(cy / self._dy - 0.5), -hy - 1, py + hy).astype(np.int64)
+        jx = ix0[:, None] + np.arange(-hx, hx + 1)  # (m, wx)
+        jy = iy0[:, None] + np.arange(-hy, hy + 1)  # (m, wy)
+        ddx = ((jx + 0.5) * self._dx - cx[:, None])[:, None, :]
+        ddy = ((jy + 0.5) * self._dy - cy[:, None])[:, :, None]
+        col = (slice(None), None, None)
+        p = hertz_pressure_kpa(ddx, ddy, a[col], b[col], c.angle_rad[k][col], c.force_n[k][col])
+        on_skin = ((jy >= 0) & (jy < py))[:, :, None] & ((jx >= 0) & (jx < px))[:, None, :]
+        flat = (slot[local_frames][:, None, None] * py + jy[:, :, None]) * px + jx[:, None, :]
+        flat = np.where(on_skin, flat, image.size - 1)
+        # Within one contact every on-skin (frame, point) index is unique, so += is exact.
+        image[flat] += p
+
+    def _mechanics(self, response: np.ndarray) -> np.ndarray:
+        """Fast lag plus slow creep of the fabric, continuing the previous chunk's state."""
+        phys, dt = self.physics, 1.0 / self.sample_rate_hz
+        alpha = math.exp(-dt / phys.mechanical_tau_s)
+        fast, self._lag_state = lfilter(
+            [1.0 - alpha], [1.0, -alpha], response, axis=0, zi=self._lag_state
+        )
+        if phys.creep_fraction <= 0:
+            return fast
+        beta = math.exp(-dt / phys.creep_tau_s)
+        slow, self._creep_state = lfilter(
+            [1.0 - beta], [1.0, -beta], fast, axis=0, zi=self._creep_state
+        )
+        return (1.0 - phys.creep_fraction) * fast + phys.creep_fraction * slow
+
+    def _proximity(self, contacts: Sequence[ContactTrack], n: int, offset: int):
+        """Fringe-field response (share of gain) and body coupling (0..1), both (n, R, C)."""
+        rows, cols = self.layout.shape
+        proximity = np.zeros((n, rows, cols))
+        phys = self.physics
+        hover_frames = phys.hover_tau_s * self.sample_rate_hz
+        for c in contacts:
+            touching = c.touching
+            if not touching.any():
+                continue
+            if touching.all():
+                distance = np.zeros(touching.shape)
+            else:
+                distance = np.asarray(distance_transform_edt(~touching), dtype=np.float64)
+            presence = np.exp(-distance / max(hover_frames, 1e-9))
+            presence = presence[offset : offset + n]
+            idx = np.flatnonzero(presence > 1e-3)
+            if idx.size == 0:
+                continue
+            k = idx + offset
+            a, b = c.semi_major_mm[k][:, None, None], c.semi_minor_mm[k][:, None, None]
+            angle = c.angle_rad[k][:, None, None]
+            dx = self._centers_x[None] - c.x_mm[k][:, None, None]
+            dy = self._centers_y[None] - c.y_mm[k][:, None, None]
+            u = dx * np.cos(angle) + dy * np.sin(angle)
+            v = dy * np.cos(angle) - dx * np.sin(angle)
+            sig2 = phys.proximity_sigma_mm**2
+            blob = np.exp(-0.5 * (u * u / (a * a + sig2) + v * v / (b * b + sig2)))
+            size = np.minimum(np.sqrt(a * b) / 5.0, 3.0)
+            proximity[idx] += presence[idx][:, None, None] * blob * size
+        body = np.minimum(proximity, 1.0)
+        return phys.proximity_fraction * proximity, body
+
+    def _crosstalk(self, change: np.ndarray) -> np.ndarray:
+        kr, kc = self.physics.row_crosstalk, self.physics.col_crosstalk
+        if kr == 0 and kc == 0:
+            return change
+        row_sum = change.sum(axis=2, keepdims=True)
+        col_sum = change.sum(axis=1, keepdims=True)
+        return change + kr * (row_sum - change) + kc * (col_sum - change)
+
+    def _ou(self, state: np.ndarray, sigma: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``n`` steps of an Ornstein-Uhlenbeck process per element of ``state``."""
+        if sigma == 0:
+            return np.broadcast_to(state, (n, state.size)), state
+        rho = math.exp(-1.0 / (self.sample_rate_hz * self.physics.drift_tau_s))
+        shocks = self._rng.standard_normal((n, state.size)) * sigma * math.sqrt(1 - rho * rho)
+        path, zf = lfilter([1.0], [1.0, -rho], shocks, axis=0, zi=rho * state[None, :])
+        return path, zf[0] / rho
+
+    def _baseline_with_drift(self, n: int) -> np.ndarray:
+        rows, cols = self.layout.shape
+        common, self._drift_common = self._ou(self._drift_common, self._drift_common_sigma, n)
+        channel, self._drift_channel = self._ou(self._drift_channel, self._drift_channel_sigma, n)
+        drift = common.reshape(n, 1, 1) + channel.reshape(n, rows, cols)
+        return self.baseline_pf * (1.0 + drift)
+
+    def _mains(self, t: np.ndarray, body: np.ndarray) -> np.ndarray:
+        phys = self.physics
+        amplitude = self._mains_amp + phys.body_mains_pf * body
+        if not amplitude.any():
+            return np.zeros_like(body)
+        phase = 2 * np.pi * phys.mains_hz * (t[:, None, None] + self._scan_offset_s)
+        phase = phase + self._mains_phase
+        wave = np.sin(phase) + phys.mains_third_harmonic * np.sin(3 * phase + self._third_phase)
+        return amplitude * wave
+
+    def _add_burst(self, frames: np.ndarray, burst: NoiseBurst, offset: int) -> None:
+        """Add an interference burst over a random share of rows and columns."""
+        n, rows, cols = frames.shape
+        fs = self.sample_rate_hz
+        start = int(round(burst.start_s * fs)) - offset
+        length = max(1, int(round(burst.duration_s * fs)))
+        lo, hi = max(start, 0), min(start + length, n)
+        rng = self._rng
+        row_lines = rng.random(rows) < burst.line_fraction
+        col_lines = rng.random(cols) < burst.line_fraction
+        if not row_lines.any() and not col_lines.any():
+            row_lines[rng.integers(rows)] = True
+        if hi <= lo:
+            return
+        k = np.arange(lo, hi) - start
+        taper = max(2, int(round(0.015 * fs)))
+        envelope = np.minimum(1.0, np.minimum(k + 1, length - k) / taper)
+        envelope = 0.5 - 0.5 * np.cos(np.pi * envelope)
+        tt = k[:, None] / fs
+
+        def line_waves(count: int) -> np.ndarray:
+            freq = burst.frequency_hz * rng.uniform(0.95, 1.05, count)
+            phase = rng.uniform(0, 2 * np.pi, count)
+            coupling = rng.lognormal(0.0, 0.4, count)
+            tone = np.sin(2 * np.pi * freq * tt + phase)
+            return coupling * (tone + 0.6 * rng.standard_normal((k.size, count)))
+
+        amp = self.physics.burst_pf * burst.strength * envelope[:, None, None]
+        row_part = (line_waves(rows) * row_lines)[:, :, None]
+        col_part = (line_waves(cols) * col_lines)[:, None, :]
+        frames[lo:hi] += amp * (row_part + col_part)
+
+    def _add_glitches(self, frames: np.ndarray) -> None:
+        n, rows, cols = frames.shape
+        count = self._rng.poisson(self.physics.glitch_rate_hz * n / self.sample_rate_hz)
+        for _ in range(count):
+            t, r, c = self._rng.integers(n), self._rng.integers(rows), self._rng.integers(cols)
+            sign = 1.0 if self._rng.random() < 0.5 else -1.0
+            frames[t, r, c] += sign * self.physics.glitch_pf * self._rng.lognormal(0.0, 0.5)
+
+    def _firmware_average(self, frames: np.ndarray) -> np.ndarray:
+        window = int(round(self.physics.firmware_average_s * self.sample_rate_hz))
+        if window < 2:
+            return frames
+        if self._average_history is None:
+            self._average_history = np.repeat(frames[:1], window - 1, axis=0)
+        joined = np.concatenate([self._average_history, frames], axis=0)
+        csum = np.cumsum(joined, axis=0)
+        csum = np.concatenate([np.zeros((1, *frames.shape[1:])), csum], axis=0)
+        averaged = (csum[window:] - csum[:-window]) / window
+        self._average_history = joined[-(window - 1) :]
+        return averaged

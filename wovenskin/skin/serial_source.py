@@ -1,0 +1,580 @@
+"""A skin on a serial port: :class:`SerialSkinSource`, the ``serial:PORT`` skin source.
+
+A background thread reads the port, decodes the binary protocol of ``docs/protocol.md``
+(or text lines, see :mod:`wovenskin.skin.textlines`) and queues ``[row, col]``
+:class:`Frame` items and :class:`SourceEvent` items that :meth:`SerialSkinSource.poll`
+drains.  The thread never dies on stream problems; it counts them in
+:class:`SourceStats` and reports them as events:
+
+- garbage, truncated packets, CRC errors, NaN/inf samples, frames whose shape differs
+  from INFO: bad frames, with the reason;
+- sequence gaps: dropped frames; the sequence going backwards (or the device clock):
+  a device reset (``reset`` event), not a drop;
+- no good frame for ``stall_ms``: ``stalled`` (then ``resumed``);
+- serial errors or the port vanishing: ``disconnected``, then reconnection with
+  exponential backoff (0.05 s doubling to 2 s), ``connected``, GET_INFO and START again.
+
+Stream clock (``Frame.t``, seconds since :meth:`start`):
+
+- binary: the device timestamp, offset so that the first frame lands on the host's
+  elapsed time; at each device reset the offset is re-anchored (to the later of the host
+  time and the previous ``t`` plus one sample period), so ``t`` is continuous and
+  strictly increasing across resets and reconnects, and keeps the device's sample spacing.
+- text: lines carry no trustworthy clock, so ``seq`` is a host line counter and ``t``
+  advances by one nominal period (``rate`` option) per line; it is pulled back to the
+  host clock whenever the two differ by more than 0.1 s (after a pause, or when the
+  nominal rate is wrong), never going backwards.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import threading
+import time
+from collections import deque
+
+import serial
+
+from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
+from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, ROW_MAJOR, ChannelOrder, SkinLayout
+from wovenskin.skin.protocol import (
+    AckMessage,
+    AckStatus,
+    CommandId,
+    CommandMessage,
+    DecodeError,
+    FrameMessage,
+    InfoMessage,
+    LogMessage,
+    MessageType,
+    StreamDecoder,
+    encode_message,
+)
+from wovenskin.skin.textlines import TextLineDecoder
+
+log = logging.getLogger(__name__)
+
+DEFAULT_BAUD = 921600
+DEFAULT_STALL_MS = 30.0
+READ_TIMEOUT_S = 0.005  # longest a read blocks: bounds stall-detection and close latency
+WRITE_TIMEOUT_S = 0.5
+BACKOFF_START_S = 0.05
+BACKOFF_MAX_S = 2.0
+ACK_TIMEOUT_S = 1.0
+INFO_RETRY_S = 1.0
+TEXT_CLOCK_TOLERANCE_S = 0.1
+MAX_QUEUED_ITEMS = 4000  # 20 s at 200 Hz; beyond this the oldest items are dropped
+
+COMMANDS = {
+    "start": CommandId.START,
+    "stop": CommandId.STOP,
+    "recalibrate": CommandId.RECALIBRATE,
+    "get_info": CommandId.GET_INFO,
+}
+OPTIONS = ("format", "order", "rows", "cols", "rate", "baud", "stall_ms", "sep", "skip")
+_SEPARATOR_NAMES = {"comma": ",", "semicolon": ";", "tab": "\t", "space": " ", "auto": ""}
+
+
+def _option(options: dict[str, str], key: str, kind: type, default):
+    if key not in options or options[key] == "":
+        return default
+    try:
+        return kind(options[key])
+    except ValueError:
+        raise ValueError(
+            f"serial option {key} must be {'an integer' if kind is int else 'a number'}, "
+            f"got {options[key]!r}"
+        ) from None
+
+
+class SerialSkinSource:
+    """A skin streaming over a serial port (binary protocol or text lines)."""
+
+    def __init__(
+        self,
+        port: str,
+        *,
+        fmt: str = "binary",
+        layout: SkinLayout | None = None,
+        order: ChannelOrder = ROW_MAJOR,
+        rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+        baud: int = DEFAULT_BAUD,
+        stall_ms: float = DEFAULT_STALL_MS,
+        text_separator: str | None = None,
+        skip_columns: int = 0,
+    ) -> None:
+        if fmt not in ("binary", "text"):
+            raise ValueError(f"serial format must be binary or text, got {fmt!r}")
+        if not rate_hz > 0:
+            raise ValueError(f"rate must be positive, got {rate_hz}")
+        if not stall_ms > 0:
+            raise ValueError(f"stall_ms must be positive, got {stall_ms}")
+        if baud <= 0:
+            raise ValueError(f"baud must be positive, got {baud}")
+        self.port = port
+        self.fmt = fmt
+        self.baud = baud
+        self.stall_s = stall_ms / 1000.0
+        self._layout = layout or SkinLayout()
+        self._order = order
+        self._nominal_rate = float(rate_hz)
+        self._source_name = f"serial:{port}"
+        self._info = SkinInfo(
+            rows=self._layout.rows,
+            cols=self._layout.cols,
+            sample_rate_hz=self._nominal_rate,
+            channel_order=str(order),
+            source=self._source_name,
+            row_pitch_mm=self._layout.row_pitch_mm,
+            col_pitch_mm=self._layout.col_pitch_mm,
+            protocol_version=1 if fmt == "binary" else 0,
+        )
+        self._binary = StreamDecoder()
+        self._text = TextLineDecoder(self._layout, order, text_separator or None, skip_columns)
+
+        self._cond = threading.Condition()  # guards everything below and the queue
+        self._queue: deque[Frame | SourceEvent] = deque()
+        self._stats = SourceStats()
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._serial: serial.Serial | None = None
+        self._t0 = 0.0
+        self._ever_connected = False
+        self._backoff_s = BACKOFF_START_S
+        self._next_attempt = 0.0
+        self._overrun_logged = False
+
+        self._device_info: InfoMessage | None = None
+        self._info_since_connect = False
+        self._next_info_request = 0.0
+        self._commands_to_send: deque[CommandId] = deque()
+        self._command_seq = 0
+        self._awaiting_ack: dict[int, tuple[str, float]] = {}
+        self._acks: deque[AckMessage] = deque(maxlen=64)
+
+        self._last_seq: int | None = None
+        self._last_device_us = 0
+        self._anchor_t = 0.0
+        self._anchor_device_us = 0
+        self._last_t: float | None = None
+        self._text_seq = 0
+        self._last_good: float | None = None
+        self._stalled = False
+
+    @classmethod
+    def from_options(cls, port: str, options: dict[str, str]) -> SerialSkinSource:
+        """Build from ``serial:PORT?key=value&...`` options (see ``docs/protocol.md``)."""
+        unknown = sorted(set(options) - set(OPTIONS))
+        if unknown:
+            raise ValueError(f"unknown serial option(s) {unknown}; known: {', '.join(OPTIONS)}")
+        fmt = options.get("format", "binary").strip().lower() or "binary"
+        if fmt not in ("binary", "text"):
+            raise ValueError(f"serial option format must be binary or text, got {fmt!r}")
+        if fmt == "binary" and options.get("order"):
+            raise ValueError("order applies to format=text; binary devices declare it in INFO")
+        for text_only in ("sep", "skip"):
+            if fmt == "binary" and options.get(text_only):
+                raise ValueError(f"serial option {text_only} applies to format=text only")
+        rows = _option(options, "rows", int, 10)
+        cols = _option(options, "cols", int, 10)
+        sep = options.get("sep", "")
+        sep = _SEPARATOR_NAMES.get(sep.lower(), sep)
+        return cls(
+            port,
+            fmt=fmt,
+            layout=SkinLayout(rows, cols),
+            order=ChannelOrder.parse(options.get("order", "") or "row-major"),
+            rate_hz=_option(options, "rate", float, DEFAULT_SAMPLE_RATE_HZ),
+            baud=_option(options, "baud", int, DEFAULT_BAUD),
+            stall_ms=_option(options, "stall_ms", float, DEFAULT_STALL_MS),
+            text_separator=sep or None,
+            skip_columns=_option(options, "skip", int, 0),
+        )
+
+    # ------------------------------------------------------------------ SkinSource API
+
+    @property
+    def info(self) -> SkinInfo:
+        return self._info
+
+    @property
+    def acks(self) -> list[AckMessage]:
+        """The most recent ACKs the device sent (newest last)."""
+        with self._cond:
+            return list(self._acks)
+
+    def start(self) -> None:
+        """Open the port and start the reader thread (idempotent).
+
+        Raises ``ConnectionError`` if the port cannot be opened at all; once streaming,
+        losing the port is reported as events and handled by reconnecting.
+        """
+        with self._cond:
+            if self._thread is not None:
+                return
+            self._t0 = time.monotonic()
+            error = self._connect(self._t0)
+            if error:
+                raise ConnectionError(f"cannot open serial port {self.port}: {error}")
+            self._stop.clear()
+            self._thread = threading.Thread(
+                target=self._run, name=f"skin-serial-{self.port}", daemon=True
+            )
+            self._thread.start()
+
+    def poll(self, timeout: float = 0.05) -> list[Frame | SourceEvent]:
+        deadline = time.monotonic() + max(0.0, timeout)
+        with self._cond:
+            while not self._queue:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return []
+                self._cond.wait(remaining)
+            items = list(self._queue)
+            self._queue.clear()
+            return items
+
+    def stats(self) -> SourceStats:
+        with self._cond:
+            return self._stats.copy()
+
+    def send_command(self, command: str) -> None:
+        name = command.strip().lower()
+        if name not in COMMANDS:
+            raise ValueError(f"unknown skin command {command!r}; use {', '.join(COMMANDS)}")
+        if self.fmt != "binary":
+            log.warning(
+                "serial %s: text-format devices take no commands; %r ignored", self.port, name
+            )
+            return
+        with self._cond:
+            self._commands_to_send.append(COMMANDS[name])
+
+    def close(self) -> None:
+        self._stop.set()
+        thread, self._thread = self._thread, None
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=2.0)
+        with self._cond:
+            self._close_port()
+            self._stats.connected = False
+
+    def __enter__(self) -> SerialSkinSource:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ connection
+
+    def _open_port(self) -> serial.Serial:
+        # Configure everything on an unopened port, then open it: pyserial applies DTR/RTS
+        # at open().  An ESP32-S3 (native USB-Serial-JTAG, or a UART bridge wired to EN/IO0
+        # for auto-programming) treats DTR/RTS transitions as a reset / download-mode
+        # request, so the lines must stay deasserted and hardware flow control off.
+        port = serial.Serial()
+        port.port = self.port
+        port.baudrate = self.baud
+        port.timeout = READ_TIMEOUT_S
+        port.write_timeout = WRITE_TIMEOUT_S
+        port.dsrdtr = False
+        port.rtscts = False
+        port.dtr = False
+        port.rts = False
+        port.exclusive = True  # two readers on one port would each get half the bytes
+        port.open()
+        return port
+
+    def _connect(self, now: float) -> str:
+        """Try to open the port; return an error message, or ``""`` on success.
+
+        The port is opened without holding the lock (opening can be slow), then registered.
+        """
+        try:
+            port = self._open_port()
+        except (serial.SerialException, OSError, ValueError) as exc:
+            with self._cond:
+                self._next_attempt = now + self._backoff_s
+                self._backoff_s = min(BACKOFF_MAX_S, self._backoff_s * 2)
+            return str(exc) or type(exc).__name__
+        with self._cond:
+            self._register_port(port, now)
+        return ""
+
+    def _register_port(self, port: serial.Serial, now: float) -> None:
+        self._serial = port
+        self._backoff_s = BACKOFF_START_S
+        self._binary.reset()
+        self._text.reset()
+        self._stats.connected = True
+        if self._ever_connected:
+            self._stats.reconnects += 1
+        self._ever_connected = True
+        self._emit(SourceEvent("connected", f"opened {self.port}", time.monotonic()))
+        if self.fmt == "binary":
+            self._info_since_connect = False
+            self._commands_to_send.extendleft([CommandId.START, CommandId.GET_INFO])
+            self._next_info_request = now + INFO_RETRY_S
+
+    def _close_port(self) -> None:
+        port, self._serial = self._serial, None
+        if port is not None:
+            with contextlib.suppress(Exception):
+                port.close()
+
+    def _lose_connection(self, reason: str) -> None:
+        now = time.monotonic()
+        self._close_port()
+        self._stats.connected = False
+        self._stats.last_error = reason
+        self._awaiting_ack.clear()
+        self._backoff_s = BACKOFF_START_S
+        self._next_attempt = now + self._backoff_s
+        log.warning("serial %s disconnected: %s", self.port, reason)
+        self._emit(SourceEvent("disconnected", reason, now))
+
+    # ------------------------------------------------------------------ reader thread
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self._step()
+            except Exception as exc:  # a bug here must not silently end the stream
+                log.exception("serial %s: reader error", self.port)
+                with self._cond:
+                    self._stats.last_error = f"reader error: {exc}"
+                    self._emit(SourceEvent("error", f"reader error: {exc}", time.monotonic()))
+                self._stop.wait(0.05)
+
+    def _step(self) -> None:
+        now = time.monotonic()
+        port = self._serial
+        if port is None:
+            if now >= self._next_attempt and not self._stop.is_set():
+                self._connect(now)
+            with self._cond:
+                self._check_stall(now)
+            if self._serial is None:
+                self._stop.wait(READ_TIMEOUT_S)
+            return
+        try:
+            with self._cond:
+                outgoing = self._take_queued_commands(now)
+            for wire in outgoing:  # written outside the lock: a slow write never blocks poll()
+                port.write(wire)
+            waiting = port.in_waiting
+            data = port.read(waiting if waiting else 1)
+        except serial.SerialTimeoutException as exc:
+            with self._cond:
+                self._emit(SourceEvent("error", f"write timed out: {exc}", now))
+            return
+        except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
+            # TypeError/AttributeError: pyserial's fd vanished under a concurrent close().
+            if not self._stop.is_set():
+                with self._cond:
+                    self._lose_connection(str(exc) or type(exc).__name__)
+            return
+        now = time.monotonic()
+        with self._cond:
+            if data:
+                self._stats.bytes_read += len(data)
+                if self.fmt == "binary":
+                    self._process_binary(data, now)
+                else:
+                    self._process_text(data, now)
+            self._check_stall(now)
+            self._check_acks(now)
+
+    def _emit(self, item: Frame | SourceEvent) -> None:
+        if len(self._queue) >= MAX_QUEUED_ITEMS:
+            dropped = self._queue.popleft()
+            if isinstance(dropped, Frame):
+                self._stats.dropped_frames += 1
+            if not self._overrun_logged:
+                log.warning("serial %s: consumer is not polling; dropping oldest items", self.port)
+                self._overrun_logged = True
+        self._queue.append(item)
+        self._cond.notify_all()
+
+    def _check_stall(self, now: float) -> None:
+        if self._last_good is None or self._stalled:
+            return
+        quiet = now - self._last_good
+        if quiet > self.stall_s:
+            self._stalled = True
+            self._stats.stalled = True
+            self._emit(SourceEvent("stalled", f"no frame for {quiet * 1000:.0f} ms", now))
+
+    def _frame_arrived(self, now: float) -> None:
+        if self._stalled:
+            quiet = now - (self._last_good or now)
+            self._stalled = False
+            self._stats.stalled = False
+            self._emit(SourceEvent("resumed", f"frames resumed after {quiet:.3f} s", now))
+        self._last_good = now
+
+    # ------------------------------------------------------------------ commands
+
+    def _take_queued_commands(self, now: float) -> list[bytes]:
+        """Wire bytes of the commands to send now (ACKs are awaited from now on)."""
+        if self._device_info_missing(now):
+            self._commands_to_send.append(CommandId.GET_INFO)
+            self._next_info_request = now + INFO_RETRY_S
+        outgoing = []
+        while self._commands_to_send:
+            command = self._commands_to_send.popleft()
+            seq = self._command_seq
+            self._command_seq = (self._command_seq + 1) & 0xFFFFFFFF
+            outgoing.append(
+                encode_message(CommandMessage(seq, int((now - self._t0) * 1e6), command))
+            )
+            if command != CommandId.GET_INFO:  # GET_INFO is answered by INFO, not ACK
+                self._awaiting_ack[seq] = (command.name.lower(), now)
+        return outgoing
+
+    def _device_info_missing(self, now: float) -> bool:
+        return (
+            self.fmt == "binary" and not self._info_since_connect and now >= self._next_info_request
+        )
+
+    def _check_acks(self, now: float) -> None:
+        for seq, (name, sent) in list(self._awaiting_ack.items()):
+            if now - sent > ACK_TIMEOUT_S:
+                del self._awaiting_ack[seq]
+                message = f"device did not acknowledge {name!r} within {ACK_TIMEOUT_S:.1f} s"
+                log.warning("serial %s: %s", self.port, message)
+                self._emit(SourceEvent("error", message, now))
+
+    def _on_ack(self, ack: AckMessage, now: float) -> None:
+        self._acks.append(ack)
+        try:
+            default_name = CommandId(ack.command).name.lower()
+        except ValueError:
+            default_name = f"command {ack.command}"
+        name, _ = self._awaiting_ack.pop(ack.seq, (default_name, now))
+        if not ack.ok:
+            try:
+                status = AckStatus(ack.status).name.lower().replace("_", " ")
+            except ValueError:
+                status = f"error {ack.status}"
+            message = f"device refused {name!r}: {status}"
+            log.warning("serial %s: %s", self.port, message)
+            self._emit(SourceEvent("error", message, now))
+
+    # ------------------------------------------------------------------ decoding
+
+    def _process_binary(self, data: bytes, now: float) -> None:
+        for item in self._binary.feed(data):
+            if isinstance(item, FrameMessage):
+                self._on_frame(item, now)
+            elif isinstance(item, DecodeError):
+                self._on_bad(item, now)
+            elif isinstance(item, InfoMessage):
+                self._on_info(item, now)
+            elif isinstance(item, AckMessage):
+                self._on_ack(item, now)
+            elif isinstance(item, LogMessage):
+                log.info("skin %s says: %s", self.port, item.text)
+            else:  # a COMMAND coming from the device: an echo or a wiring loop
+                self._stats.count_bad("direction")
+
+    def _on_info(self, msg: InfoMessage, now: float) -> None:
+        self._device_info = msg
+        self._info_since_connect = True
+        self._layout = msg.layout
+        self._order = msg.channel_order
+        info = msg.to_skin_info(source=self._source_name)
+        if info != self._info:
+            self._info = info
+            self._emit(
+                SourceEvent(
+                    "info",
+                    f"{info.rows}x{info.cols} {info.channel_order} at {info.sample_rate_hz:g} Hz,"
+                    f" firmware {info.firmware!r}, device {info.device_id!r}",
+                    now,
+                    info,
+                )
+            )
+
+    def _on_bad(self, error: DecodeError, now: float) -> None:
+        self._stats.count_bad(error.reason)
+        if error.msg_type == MessageType.FRAME and error.seq is not None:
+            # The header passed its CRC: account for the sequence number so a rejected
+            # frame is not also counted as dropped.
+            self._stream_time(error.seq, error.device_t_us or 0, now)
+
+    def _on_frame(self, msg: FrameMessage, now: float) -> None:
+        if (msg.rows, msg.cols) != self._layout.shape:
+            self._stats.count_bad("shape")
+            self._stream_time(msg.seq, msg.device_t_us, now)
+            return
+        if msg.dtype.is_integer and self._device_info is None:
+            self._stats.count_bad("no-info")  # counts without a scale: units unknown
+            self._stream_time(msg.seq, msg.device_t_us, now)
+            return
+        t = self._stream_time(msg.seq, msg.device_t_us, now)
+        if t is None:
+            self._stats.count_bad("duplicate")
+            return
+        values = self._order.to_frames(msg.samples, self._layout)
+        self._stats.good_frames += 1
+        self._frame_arrived(now)
+        self._emit(Frame(msg.seq, t, values, t_host=now, device_t_us=msg.device_t_us))
+
+    def _stream_time(self, seq: int, device_us: int, now: float) -> float | None:
+        """Account for ``seq`` (drops, resets) and return the frame's stream time.
+
+        Returns ``None`` for an exact duplicate of the previous frame.
+        """
+        elapsed = now - self._t0
+        last_seq = self._last_seq
+        if last_seq is None:
+            self._anchor(elapsed, device_us)
+        else:
+            step = (seq - last_seq) & 0xFFFFFFFF
+            if step == 0 and device_us == self._last_device_us:
+                return None
+            if step == 0 or step >= 1 << 31 or device_us < self._last_device_us:
+                self._stats.resets += 1
+                message = f"device reset: sequence {last_seq} -> {seq}"
+                log.info("serial %s: %s", self.port, message)
+                self._emit(SourceEvent("reset", message, now))
+                last_t = self._last_t if self._last_t is not None else elapsed
+                self._anchor(max(elapsed, last_t + 1.0 / self._info.sample_rate_hz), device_us)
+            else:
+                self._stats.dropped_frames += step - 1
+        self._last_seq = seq
+        self._last_device_us = device_us
+        t = self._anchor_t + (device_us - self._anchor_device_us) * 1e-6
+        if self._last_t is not None and t <= self._last_t:
+            t = self._last_t + 1e-6  # equal device timestamps: keep the clock strictly increasing
+        self._last_t = t
+        return t
+
+    def _anchor(self, t: float, device_us: int) -> None:
+        self._anchor_t = t
+        self._anchor_device_us = device_us
+
+    def _process_text(self, data: bytes, now: float) -> None:
+        for item in self._text.feed(data):
+            if isinstance(item, DecodeError):
+                self._stats.count_bad(item.reason)
+                continue
+            seq = self._text_seq
+            self._text_seq += 1
+            t = self._text_time(now - self._t0)
+            self._stats.good_frames += 1
+            self._frame_arrived(now)
+            self._emit(Frame(seq, t, item, t_host=now, device_t_us=None))
+
+    def _text_time(self, elapsed: float) -> float:
+        if self._last_t is None:
+            t = elapsed
+        else:
+            t = self._last_t + 1.0 / self._nominal_rate
+            if abs(elapsed - t) > TEXT_CLOCK_TOLERANCE_S:
+                t = max(elapsed, self._last_t + 1e-6)
+        self._last_t = t
+        return t

@@ -1,0 +1,1 @@
+"""User interfaces: the terminal heatmap view and the guided recording session."""
