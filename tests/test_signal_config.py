@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from wovenskin.signal.config import ConditioningConfig
@@ -34,9 +35,16 @@ def test_alphas_are_fractions_that_grow_with_the_block():
     assert slower.drift_alpha < config.drift_alpha
 
 
-def test_max_contact_can_be_disabled():
+def test_contact_guards_in_blocks():
+    config = ConditioningConfig()
+    assert config.stale_contact_blocks == 50 and config.max_contact_blocks == 300
     assert ConditioningConfig(max_contact_s=0).max_contact_blocks == 0
     assert ConditioningConfig(max_contact_s=60).max_contact_blocks == 600
+
+
+def test_peak_memory_is_a_per_frame_decay():
+    config = ConditioningConfig(peak_memory_s=1.0)
+    assert config.peak_decay**config.sample_rate_hz == pytest.approx(np.exp(-1.0))
 
 
 def test_dict_round_trip_through_json():
@@ -58,7 +66,14 @@ def test_from_dict_fills_defaults_and_rejects_unknown_keys():
         ({"smoothing_s": float("nan")}, "smoothing_s"),
         ({"drift_tau_s": -1}, "drift_tau_s"),
         ({"hold_s": -0.1}, "hold_s"),
-        ({"contact_off_sigma": 7.0}, "contact_off_sigma"),
+        ({"contact_off_sigma": 9.0}, "contact_off_sigma"),
+        ({"on_peak_fraction": 0.05}, "peak fractions"),
+        ({"rearm_fraction": 0.1}, "release_fraction"),
+        ({"recover_blocks": 0}, "recover_blocks"),
+        ({"spike_filter": "yes"}, "spike_filter"),
+        ({"seeded_blobs": 1}, "seeded_blobs"),
+        ({"common_drift": None}, "common_drift"),
+        ({"common_mode_quantile": 1.0}, "common_mode_quantile"),
         ({"min_release_rel": 0.05}, "min_release_rel"),
         ({"connectivity": 6}, "connectivity"),
         ({"max_drop_rel": 1.0}, "max_drop_rel"),

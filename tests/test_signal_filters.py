@@ -7,7 +7,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from wovenskin.signal.filters import CausalMovingAverage, hold_last_good
+from wovenskin.signal.filters import (
+    CausalMovingAverage,
+    SpikeFilter,
+    hold_last_good,
+    median_of_three,
+)
 
 
 def _naive_trailing_mean(x: np.ndarray, window: int) -> np.ndarray:
@@ -72,3 +77,29 @@ def test_hold_last_good_fills_forward_from_the_carried_value():
     assert filled[:, 0, 0].tolist() == [1.0, 1.0, 3.0, 3.0]
     assert filled[:, 0, 1].tolist() == [-2.0, 20.0, 20.0, 20.0]
     assert np.isnan(x[1, 0, 0])  # input untouched
+
+
+def test_median_of_three_is_the_middle_value():
+    a, b, c = np.array([1.0, 5.0, 3.0]), np.array([2.0, 4.0, 9.0]), np.array([3.0, 6.0, 1.0])
+    assert median_of_three(a, b, c).tolist() == [2.0, 5.0, 3.0]
+
+
+def test_spike_filter_removes_one_frame_spikes_and_delays_steps_by_one_frame():
+    x = np.zeros((12, 1, 2))
+    x[4, 0, 0] = 9.0  # one-frame spike
+    x[6:, 0, 1] = 1.0  # step
+    out = SpikeFilter(np.zeros((1, 2))).apply(x)
+    assert (out[:, 0, 0] == 0.0).all()
+    assert out[:, 0, 1].tolist() == [0.0] * 7 + [1.0] * 5
+
+
+def test_spike_filter_starts_from_the_given_level_and_chunks_exactly():
+    rng = np.random.default_rng(7)
+    x = 10.0 + rng.normal(size=(50, 2, 2))
+    whole = SpikeFilter(np.full((2, 2), 10.0)).apply(x)
+    assert np.array_equal(whole[0], np.full((2, 2), 10.0))  # median(10, 10, x0)
+    streaming = SpikeFilter(np.full((2, 2), 10.0))
+    parts = [streaming.apply(x[a:b]) for a, b in _chunks(50, [1, 3, 7, 2])]
+    assert np.array_equal(np.concatenate(parts), whole)
+    streaming.reset()
+    assert np.array_equal(streaming.apply(x), whole)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 app = typer.Typer(
     help="Gesture control of a robot arm with a woven capacitive tactile skin.",
@@ -38,7 +39,8 @@ def user_errors(fn):
         try:
             return fn(*args, **kwargs)
         except (FormatError, ValueError, FileNotFoundError, FileExistsError, OSError) as exc:
-            err_console.print(f"[red]error:[/] {exc}")
+            message = " ".join(str(exc).split()) or type(exc).__name__
+            err_console.print(f"[red]error:[/] {escape(message)}", soft_wrap=True, highlight=False)
             raise typer.Exit(2) from None
 
     return wrapper
@@ -134,9 +136,7 @@ def record(
     from wovenskin.gestures import GESTURE_NAMES, check_name
     from wovenskin.ui.record_session import RecordPlan, run_record_session
 
-    names = [check_name(g.strip()) for g in gestures.split(",") if g.strip()] or list(
-        GESTURE_NAMES
-    )
+    names = [check_name(g.strip()) for g in gestures.split(",") if g.strip()] or list(GESTURE_NAMES)
     plan = RecordPlan(
         gestures=names,
         trials_per_gesture=trials,

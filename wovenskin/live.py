@@ -90,9 +90,7 @@ class LiveSkin:
         self.config = replace(config or ConditioningConfig(), sample_rate_hz=info.sample_rate_hz)
         self._on_message = on_message or (lambda _msg: None)
         self._shape = (info.rows, info.cols)
-        self.conditioner = LiveConditioner(
-            self.config, info.rows, info.cols, on_warning=self._warn
-        )
+        self.conditioner = LiveConditioner(self.config, info.rows, info.cols, on_warning=self._warn)
         self.recorder = recorder
         self.state = LiveState()
         self._rate = RateMeter()
@@ -155,8 +153,9 @@ class LiveSkin:
                     on_warning=self._warn,
                 )
         if self.recorder is not None:
-            self.recorder.add_annotation("source", 0.0, {"kind": event.kind, "message": event.message})
-        if event.kind not in ("info",):
+            payload = {"kind": event.kind, "message": event.message}
+            self.recorder.add_annotation("source", self.state.t, payload)
+        if event.kind != "info":
             self._on_message(f"skin: {event.kind} {event.message}".strip())
 
     def _consume(self, frames: list[Frame]) -> LiveBlock | None:
@@ -194,5 +193,5 @@ class LiveSkin:
         st.contacts = out.contacts[-1]
         st.touched = bool(out.touched[-1])
         # Once calibration completes mid-batch, only the trailing frames come out.
-        times = np.array([f.t for f in good[len(good) - len(out):]], dtype=np.float64)
+        times = np.array([f.t for f in good[len(good) - len(out) :]], dtype=np.float64)
         return LiveBlock(times, out)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import os
 import platform
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 
@@ -81,17 +81,13 @@ def one_core():
         yield
         return
     before = os.sched_getaffinity(0)
-    try:
+    with suppress(OSError):
         os.sched_setaffinity(0, {min(before)})
-    except OSError:
-        pass
     try:
         yield
     finally:
-        try:
+        with suppress(OSError):
             os.sched_setaffinity(0, before)
-        except OSError:
-            pass
 
 
 def bench_frames(n_frames: int, layout: SkinLayout, seed: int = 0) -> tuple[np.ndarray, float]:

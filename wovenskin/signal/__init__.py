@@ -6,10 +6,19 @@ live stream and on a whole recording at once, with identical results.
 """
 
 from wovenskin.signal.calibration import Calibration, calibrate
-from wovenskin.signal.conditioner import ConditionedFrames, Conditioner, condition_recording
+from wovenskin.signal.conditioner import (
+    ConditionedFrames,
+    Conditioner,
+    LiveConditioner,
+    condition_recording,
+)
 from wovenskin.signal.config import ConditioningConfig
-from wovenskin.signal.contacts import Contact, ContactDetector, extract_contacts
-from wovenskin.signal.live import LiveConditioner
+from wovenskin.signal.contacts import (
+    Contact,
+    ContactDetector,
+    DetectorSettings,
+    extract_contacts,
+)
 
 __all__ = [
     "Calibration",
@@ -18,6 +27,7 @@ __all__ = [
     "ConditioningConfig",
     "Contact",
     "ContactDetector",
+    "DetectorSettings",
     "LiveConditioner",
     "calibrate",
     "condition_recording",

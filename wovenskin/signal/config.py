@@ -62,10 +62,11 @@ class ConditioningConfig:
     - ``baseline_block_s``: block length (0.1 s cancels 50 Hz and 60 Hz mains).
     - ``drift_tau_s``: time constant with which the baseline follows untouched channels.
     - ``hold_s``: how long a channel stays frozen after it (or a neighbour) was last active.
-    - ``recover_sigma`` / ``recover_min_rel``: ``recover_blocks`` blocks in a row whose
-      median reads more than ``max(recover_sigma * noise, recover_min_rel)`` below
-      baseline trigger fast recovery (pressing only raises capacitance, so such a baseline
-      is wrong; asking for more than one block ignores short glitches).
+    - ``recover_sigma`` / ``recover_min_rel``: ``recover_blocks`` blocks in a row that
+      read more than ``max(recover_sigma * noise, recover_min_rel)`` below baseline
+      through most of the block (its upper quartile does) trigger fast recovery (pressing
+      only raises capacitance, so such a baseline is wrong; glitches and interference
+      bursts are shorter, or swing both ways).
     - ``recover_tau_s``: time constant of that fast recovery.
     - ``common_drift``: every channel, frozen or not, follows the common-mode drift of
       the skin (thermal drift is largely shared by all channels) at once, block by block;

@@ -2,25 +2,30 @@
 
 :class:`ContactDetector` turns the conditioned signal into
 
-- ``active`` ``(n, R, C)``: a channel turns on when its signal rises above its on
-  threshold and off when it falls below its (lower) off threshold.  Both are per-channel
-  levels (from the calibrated noise), raised frame by frame to a fraction of the frame's
-  strongest signal (so the cross-talk of a firm press along its electrode lines stays
-  inactive) and to a fraction of the channel's own recent peak (so a channel releases
-  cleanly after a firm press, see :class:`DetectorSettings`);
+- ``active`` ``(n, R, C)``.  Detection first removes, frame by frame, the level shared
+  by the whole skin (a low quantile of all channels, when positive), so fast common
+  drift never looks like contact.  A channel then turns on when its signal rises above
+  its on threshold and off when it falls below its (lower) off threshold.  Both are
+  per-channel levels (from the calibrated noise, with absolute floors), raised frame by
+  frame to a fraction of the frame's strongest signal (so the cross-talk of a firm press
+  along its electrode lines stays inactive) and to a fraction of the channel's own
+  recent peak (so a channel releases cleanly after a firm press and does not fire again
+  on the relaxing fabric).  Finally a channel is active only if its blob holds a *seed*,
+  a channel above its plain on threshold in that frame, so a lone channel lingering just
+  above its off threshold drops out (see :class:`DetectorSettings`);
 - ``touched`` ``(n,)``: the skin counts as touched once some channel has been active for
   ``debounce_on_frames`` consecutive frames, and as released once none has been for
   ``debounce_off_frames``;
 - contacts: connected blobs of active channels (4-connected by default: edge neighbours
   only; 8-connected adds diagonals), each a :class:`Contact` with its signal-weighted
   centroid, size, peak and strength, listed per frame in raster order of each blob's
-  first channel.
+  first channel.  Two fingertips closer than about two channel pitches share one blob.
 
 Hysteresis is written as "index of the last on/off event" per channel, propagated with
-``np.maximum.accumulate`` from carried state, so it vectorises over time; the debounce is
-a scalar state machine stepped once per frame.  Both carry their state between calls and
-give identical results for any chunking.  Frame indices count from the detector's
-creation (or last :meth:`ContactDetector.reset`).
+``np.maximum.accumulate`` from carried state, so it vectorises over time; the recent-peak
+envelope and the debounce are stepped once per frame.  Everything carries its state
+between calls and gives identical results for any chunking.  Frame indices count from
+the detector's creation (or last :meth:`ContactDetector.reset`).
 """
 
 from __future__ import annotations
@@ -54,6 +59,9 @@ def _labelling_structure(connectivity: int) -> np.ndarray:
 
 
 _STRUCTURES = {4: _labelling_structure(4), 8: _labelling_structure(8)}
+
+# On a skin this small one finger can cover most of it: no common-mode level is taken.
+_MIN_CHANNELS_FOR_COMMON_MODE = 8
 
 
 def extract_contacts(
@@ -150,7 +158,8 @@ class DetectorSettings:
       blob holds a channel above its plain on threshold in that frame.
     - ``common_mode_quantile``: detection works on the signal minus, frame by frame, this
       quantile of all live channels' signals when it is positive, so an offset shared by
-      the whole skin (fast thermal drift) never looks like contact; 0 disables it.
+      the whole skin (fast thermal drift) never looks like contact; 0 disables it, and so
+      does a skin of fewer than 8 live channels.
     """
 
     debounce_on_frames: int = 1
@@ -227,7 +236,7 @@ class ContactDetector:
         quantile = self.settings.common_mode_quantile
         self._common_rank = (
             int(quantile * (self._live_index.size - 1))
-            if quantile > 0 and self._live_index.size > 0
+            if quantile > 0 and self._live_index.size >= _MIN_CHANNELS_FOR_COMMON_MODE
             else None
         )
         self.reset()

@@ -6,7 +6,8 @@ at least one contact-free second), a little ahead of the wall clock; :meth:`poll
 the frames that are due.  ``speed=1`` paces frames in real time, ``speed=2`` twice as fast,
 ``speed=0`` as fast as the consumer polls.  :meth:`perform` queues a specific gesture next
 (guided recording, dashboards) and :meth:`current_label` / :attr:`events` give the ground
-truth of what the simulated person is doing.
+truth of what the simulated person is doing.  With ``auto=0`` the person rests between
+requests and performs only what :meth:`perform` asks for.
 """
 
 from __future__ import annotations
@@ -31,7 +32,18 @@ from wovenskin.skin.layout import (
     SkinLayout,
 )
 
-OPTIONS = ("seed", "speed", "rows", "cols", "row_pitch", "col_pitch", "gestures", "idle", "invalid")
+OPTIONS = (
+    "seed",
+    "speed",
+    "rows",
+    "cols",
+    "row_pitch",
+    "col_pitch",
+    "gestures",
+    "idle",
+    "invalid",
+    "auto",
+)
 """Keys understood by :meth:`SimulatedSkinSource.from_options`."""
 
 _IDLE_CHUNK_S = 0.05  # idle is rendered in small pieces so that requests start promptly
@@ -60,12 +72,15 @@ class SimulatedSkinSource:
         person: Person | None = None,
         sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
         max_batch: int = 200,
+        autonomous: bool = True,
     ) -> None:
-        """``max_batch``: most frames one :meth:`poll` returns when ``speed=0``."""
+        """``max_batch``: most frames one :meth:`poll` returns when ``speed=0``;
+        ``autonomous=False``: the person rests and acts only on :meth:`perform` requests."""
         if not np.isfinite(speed) or speed < 0:
             raise ValueError(f"sim speed must be >= 0 (0 = as fast as polled), got {speed}")
         self.seed = int(seed) if seed is not None else int(np.random.SeedSequence().entropy % 2**31)
         self.speed = float(speed)
+        self.autonomous = bool(autonomous)
         self.max_batch = max(1, int(max_batch))
         self.layout = layout if layout is not None else SkinLayout()
         fs = float(sample_rate_hz)
@@ -77,7 +92,6 @@ class SimulatedSkinSource:
             rng, self.person, self.layout, gestures, invalid_fraction, idle_s, fs
         )
         self._fs = fs
-        self._rng = rng
         self._info = SkinInfo(
             rows=self.layout.rows,
             cols=self.layout.cols,
@@ -92,7 +106,6 @@ class SimulatedSkinSource:
         )
         self._cond = threading.Condition()
         self._buffer: deque[np.ndarray] = deque()  # rendered, not yet delivered frames
-        self._buffer_first_seq = 0
         self._rendered = 0  # frames rendered so far (stream frames)
         self._delivered = 0
         self._requests: deque[str] = deque()
@@ -114,7 +127,7 @@ class SimulatedSkinSource:
         """Build from ``open_source`` options (all values are strings); see :data:`OPTIONS`."""
         options = dict(options)
         # "sim:gestures=swipe_up,push" arrives split at the comma: gather stray class names.
-        stray = [k for k, v in options.items() if k in CLASS_NAMES and v == ""]
+        stray = [k for k, v in options.items() if k.partition(":")[0] in CLASS_NAMES and v == ""]
         for k in stray:
             del options[k]
         unknown = sorted(set(options) - set(OPTIONS))
@@ -166,6 +179,7 @@ class SimulatedSkinSource:
             gestures=gestures,
             idle_s=idle,
             invalid_fraction=number("invalid", float, 0.25),
+            autonomous=bool(number("auto", int, 1)),
         )
 
     # -- SkinSource ---------------------------------------------------------------------------
@@ -319,6 +333,8 @@ class SimulatedSkinSource:
             else:
                 upcoming.request = request
                 upcoming.contact_frame = max(self._earliest_contact, self._rendered + lead)
+        if not self.autonomous and upcoming.request is None:
+            return self._model.render_idle(int(round(_IDLE_CHUNK_S * fs)))
         start = upcoming.contact_frame - lead
         if self._rendered < start:
             n = min(start - self._rendered, int(round(_IDLE_CHUNK_S * fs)))

@@ -32,6 +32,7 @@ from wovenskin.gestures import INVALID
 from wovenskin.live import LiveSkin
 from wovenskin.recording.native import RecordingWriter
 from wovenskin.signal.config import ConditioningConfig
+from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.source import open_source
 from wovenskin.ui.terminal import heatmap
 
@@ -134,6 +135,8 @@ def run_record_session(
     live_skin = LiveSkin(source, live_skin_config, on_message=messages.append, recorder=writer)
     summary = SessionSummary(Path(out), 0)
     perform = getattr(source, "perform", None)
+    if isinstance(source, SimulatedSkinSource):
+        source.autonomous = False  # the simulated person performs only what is prompted
     live_skin.start()
     try:
         with Live(console=console, auto_refresh=False) as live:
@@ -196,7 +199,8 @@ class _Session:
             self.summary.trials.append(result)
             self.writer.add_label(
                 label,
-                result.contact_start_s if result.contact_start_s is not None
+                result.contact_start_s
+                if result.contact_start_s is not None
                 else result.prompt_start_s,
                 result.contact_end_s if result.contact_end_s is not None else result.prompt_end_s,
                 kind="trial",

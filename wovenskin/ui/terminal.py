@@ -18,8 +18,16 @@ from wovenskin.skin.frames import SourceStats
 
 # Anchors of a perceptually ordered dark-to-bright map (black, indigo, red, orange, yellow).
 _ANCHORS = np.array(
-    [[0, 0, 4], [40, 11, 84], [101, 21, 110], [159, 42, 99], [212, 72, 66], [245, 125, 21],
-     [250, 193, 39], [252, 255, 164]],
+    [
+        [0, 0, 4],
+        [40, 11, 84],
+        [101, 21, 110],
+        [159, 42, 99],
+        [212, 72, 66],
+        [245, 125, 21],
+        [250, 193, 39],
+        [252, 255, 164],
+    ],
     dtype=float,
 )
 _PALETTE_SIZE = 32

@@ -68,8 +68,10 @@ def run_view(
                 now = time.monotonic()
                 if now >= next_draw:
                     display_rate.add(now=now)
-                    live.update(_render(live_skin, skin, full_scale, display_rate.rate(now),
-                                        messages), refresh=True)
+                    live.update(
+                        _render(live_skin, skin, full_scale, display_rate.rate(now), messages),
+                        refresh=True,
+                    )
                     updates += 1
                     next_draw = max(next_draw + period, now)
     except KeyboardInterrupt:
@@ -77,12 +79,12 @@ def run_view(
     finally:
         live_skin.close()
     elapsed = time.monotonic() - started
-    return ViewResult(frames, updates, elapsed, live_skin.stats().bad_frames,
-                      live_skin.state.ended)
+    return ViewResult(frames, updates, elapsed, live_skin.stats().bad_frames, live_skin.state.ended)
 
 
-def _render(live_skin: LiveSkin, spec: str, full_scale: float, display_hz: float,
-            messages: list[str]):
+def _render(
+    live_skin: LiveSkin, spec: str, full_scale: float, display_hz: float, messages: list[str]
+):
     st = live_skin.state
     info = live_skin.info
     extra = {"t": f"{st.t:8.2f} s"}
@@ -90,7 +92,8 @@ def _render(live_skin: LiveSkin, spec: str, full_scale: float, display_hz: float
     if callable(label_of):
         extra["sim person"] = str(label_of() or "-")
     heat = heatmap(st.signal, st.contacts, full_scale=full_scale, shape=(info.rows, info.cols))
-    status = status_table(live_skin.stats(), st.frame_rate_hz, display_hz, len(st.contacts),
-                          st.calibrating, extra)
+    status = status_table(
+        live_skin.stats(), st.frame_rate_hz, display_hz, len(st.contacts), st.calibrating, extra
+    )
     title = f"wovenskin view  {spec}  {info.rows}x{info.cols} @ {info.sample_rate_hz:g} Hz"
     return skin_panel(heat, status, title, messages)
