@@ -59,7 +59,7 @@ class IoBenchResult:
         table.add_column("x real time", justify="right")
         rt = self.sample_rate_hz
         for name, fps in (
-            ("decode (COBS + CRC + parse + to [row,col])", self.decode_fps),
+            ("decode (COBS + CRC + parse + reorder)", self.decode_fps),
             ("conditioning, frame by frame", self.condition_live_fps),
             ("conditioning, whole recording", self.condition_batch_fps),
             ("decode + conditioning (live path)", self.combined_fps),
