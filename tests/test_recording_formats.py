@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests.conftest import SHARED
 from wovenskin.recording.formats import (
     METADATA_JSON_KEY,
     FormatError,
@@ -21,7 +22,7 @@ from wovenskin.recording.formats import (
     write_labelled_stream,
 )
 
-HAART = Path("/work/shared/datasets/haart/haart-train.npz")
+HAART = SHARED / "datasets" / "haart" / "haart-train.npz"
 
 
 def stream_arrays(n_frames: int = 20, rows: int = 4, cols: int = 3) -> dict[str, np.ndarray]:
