@@ -76,9 +76,14 @@ def test_info_on_bad_files_is_one_line(tmp_path, content, message):
 def test_view_a_replay_to_the_end(tmp_path):
     src = tmp_path / "s.npz"
     runner.invoke(app, ["simulate", "--out", str(src), "--seconds", "3", "--seed", "2"])
-    result = runner.invoke(app, ["view", "--skin", f"replay:{src}?speed=0", "--seconds", "20"])
+    snap = tmp_path / "screen.svg"
+    result = runner.invoke(
+        app,
+        ["view", "--skin", f"replay:{src}?speed=0", "--seconds", "20", "--snapshot", str(snap)],
+    )
     assert result.exit_code == 0, result.output
-    assert "bad frames" in result.output
+    assert "0 bad frames" in result.output
+    assert snap.read_text().lstrip().startswith("<svg") and "frames" in snap.read_text()
 
 
 def test_view_missing_replay_file_is_one_line(tmp_path):

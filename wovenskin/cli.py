@@ -52,8 +52,11 @@ def view(
     skin: str = typer.Option("sim", help=SKIN_HELP),
     seconds: float = typer.Option(None, help="Stop after this many seconds (default: Ctrl-C)."),
     fps: float = typer.Option(25.0, help="Display updates per second."),
-    full_scale: float = typer.Option(0.3, help="Relative change shown at full brightness."),
+    full_scale: float = typer.Option(
+        0.0, help="Relative change shown at full brightness (0: follow the signal)."
+    ),
     smoothing_ms: float = typer.Option(100.0, help="Moving-average length in ms."),
+    snapshot: Path = typer.Option(None, help="Save the last screen as an SVG file at exit."),
 ) -> None:
     """Show a skin live in the terminal: heatmap, contacts, frame rate, error counters."""
     from wovenskin.ui.view import run_view
@@ -62,9 +65,10 @@ def view(
         skin,
         seconds=seconds,
         fps=fps,
-        full_scale=full_scale,
+        full_scale=full_scale or None,
         config=_config_for(smoothing_ms),
         console=console,
+        snapshot=snapshot,
     )
     console.print(
         f"{result.frames} frames in {result.seconds:.1f} s, "

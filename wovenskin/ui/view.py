@@ -8,9 +8,12 @@ doing, as ground truth.
 
 from __future__ import annotations
 
+import io
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
+import numpy as np
 from rich.console import Console
 from rich.live import Live
 
@@ -35,20 +38,42 @@ class ViewResult:
         return self.display_updates / self.seconds if self.seconds > 0 else 0.0
 
 
+class AutoScale:
+    """Full scale of the colour map: follows the strongest recent signal, decays slowly."""
+
+    def __init__(self, floor: float = 0.02, decay_per_update: float = 0.98) -> None:
+        self.floor = floor
+        self.decay = decay_per_update
+        self.value = floor
+
+    def update(self, signal: np.ndarray | None) -> float:
+        peak = float(np.nanmax(signal)) if signal is not None and signal.size else 0.0
+        peak = peak if np.isfinite(peak) else 0.0
+        self.value = max(self.floor, peak, self.value * self.decay)
+        return self.value
+
+
 def run_view(
     skin: str = "sim",
     seconds: float | None = None,
     fps: float = 25.0,
-    full_scale: float = 0.3,
+    full_scale: float | None = None,
     config: ConditioningConfig | None = None,
     console: Console | None = None,
+    snapshot: Path | None = None,
 ) -> ViewResult:
-    """Show ``skin`` live until Ctrl-C, the end of a replay, or ``seconds`` elapse."""
+    """Show ``skin`` live until Ctrl-C, the end of a replay, or ``seconds`` elapse.
+
+    ``full_scale`` is the relative change drawn brightest; ``None`` follows the signal.
+    ``snapshot``: save the last screen drawn as an SVG file when the view ends.
+    """
     console = console or Console()
     source = open_source(skin)
     messages: list[str] = []
     live_skin = LiveSkin(source, config, on_message=messages.append)
     display_rate = RateMeter()
+    scale = AutoScale()
+    last_frame = None
     frames = updates = 0
     started = time.monotonic()
     period = 1.0 / fps
@@ -68,16 +93,20 @@ def run_view(
                 now = time.monotonic()
                 if now >= next_draw:
                     display_rate.add(now=now)
-                    live.update(
-                        _render(live_skin, skin, full_scale, display_rate.rate(now), messages),
-                        refresh=True,
-                    )
+                    shown_scale = full_scale or scale.update(live_skin.state.signal)
+                    frame = _render(live_skin, skin, shown_scale, display_rate.rate(now), messages)
+                    live.update(frame, refresh=True)
+                    last_frame = frame
                     updates += 1
                     next_draw = max(next_draw + period, now)
     except KeyboardInterrupt:
         pass
     finally:
         live_skin.close()
+    if snapshot is not None and last_frame is not None:
+        recorder = Console(record=True, width=console.width, file=io.StringIO())
+        recorder.print(last_frame)
+        recorder.save_svg(str(snapshot), title=f"wovenskin view {skin}")
     elapsed = time.monotonic() - started
     return ViewResult(frames, updates, elapsed, live_skin.stats().bad_frames, live_skin.state.ended)
 
@@ -87,7 +116,7 @@ def _render(
 ):
     st = live_skin.state
     info = live_skin.info
-    extra = {"t": f"{st.t:8.2f} s"}
+    extra = {"t": f"{st.t:8.2f} s", "full scale": f"{100 * full_scale:5.1f} %"}
     label_of = getattr(live_skin.source, "current_label", None)
     if callable(label_of):
         extra["sim person"] = str(label_of() or "-")
