@@ -310,7 +310,7 @@ def test_frames_reach_the_file_every_quarter_second_of_stream_time(tmp_path):
 
 def test_frames_reach_the_file_after_a_quarter_second_of_wall_time(tmp_path):
     path = tmp_path / "r.wsrec"
-    writer = RecordingWriter(path, INFO, flush_interval_s=0.05)
+    writer = RecordingWriter(path, INFO, flush_interval_s=1.0)
     writer.append_frames(0, 0.0, frame_values(0))
     time.sleep(0.1)
     writer.append_frames(1, 0.001, frame_values(1))
@@ -450,3 +450,18 @@ def test_import_of_a_plain_stream_with_integer_frames(tmp_path):
     back = read_recording(tmp_path / "i.wsrec")
     np.testing.assert_array_equal(back.frames, frames.astype(np.float32))
     assert back.labels[0].label == "push" and back.clean_close
+
+
+def test_tick_makes_buffered_frames_durable_while_the_stream_is_silent(tmp_path):
+    import time as _time
+
+    from wovenskin.skin.frames import SkinInfo
+
+    path = tmp_path / "quiet.wsrec"
+    writer = RecordingWriter(path, SkinInfo(rows=2, cols=2), flush_interval_s=1.0)
+    writer.append_frames(np.arange(3), np.arange(3) / 200.0, np.ones((3, 2, 2), np.float32))
+    assert len(read_recording(path).frames) == 0  # still buffered: the flush is not due yet
+    _time.sleep(1.05)
+    writer.tick()  # no new data, but the flush is due
+    assert len(read_recording(path).frames) == 3
+    writer.close()

@@ -127,6 +127,8 @@ class LiveSkin:
             else:
                 frames.append(item)
         if not frames:
+            if self.recorder is not None:
+                self.recorder.tick()  # keep buffered frames durable through a stall
             return None
         return self._consume(frames)
 

@@ -324,6 +324,16 @@ class RecordingWriter:
         document = {"stream": str(stream), "t": float(t), "payload": payload}
         self._add_document(RecordType.ANNOTATION, document, "annotations")
 
+    def tick(self) -> None:
+        """Apply the flush/fsync schedule without new data.
+
+        Call it while the stream is quiet (a stall, a pulled cable), so frames buffered
+        before the silence still reach the disk within the promised time.
+        """
+        with self._lock:
+            if not self._closed:
+                self._keep_durable()
+
     def flush(self) -> None:
         """Write everything buffered and ``fsync`` it."""
         with self._lock:
