@@ -310,7 +310,7 @@ def test_frames_reach_the_file_every_quarter_second_of_stream_time(tmp_path):
 
 def test_frames_reach_the_file_after_a_quarter_second_of_wall_time(tmp_path):
     path = tmp_path / "r.wsrec"
-    writer = RecordingWriter(path, INFO, flush_interval_s=1.0)
+    writer = RecordingWriter(path, INFO, flush_interval_s=0.05)
     writer.append_frames(0, 0.0, frame_values(0))
     time.sleep(0.1)
     writer.append_frames(1, 0.001, frame_values(1))
