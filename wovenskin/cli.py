@@ -29,6 +29,23 @@ err_console = Console(stderr=True)
 SKIN_HELP = "Skin source: sim, serial:PORT[?format=text&order=col-major] or replay:FILE[?speed=2]."
 
 
+def _version(value: bool) -> None:
+    if value:
+        from wovenskin import __version__
+
+        console.print(f"wovenskin {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="Print the version."
+    ),
+) -> None:
+    """Gesture control of a robot arm with a woven capacitive tactile skin."""
+
+
 def user_errors(fn):
     """Turn expected user errors into one red line and exit code 2."""
 
@@ -162,7 +179,7 @@ def record(
         overwrite=overwrite,
         console=console,
     )
-    console.print(summary)
+    console.print(str(summary))
 
 
 @app.command()
