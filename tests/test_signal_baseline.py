@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wovenskin.signal.baseline import BaselineTracker, dilate_one_channel
+from wovenskin.signal.baseline import BaselineTracker, CommonDrift, dilate_one_channel
 from wovenskin.signal.calibration import Calibration
 from wovenskin.signal.config import ConditioningConfig
 
@@ -102,24 +102,36 @@ def test_active_channels_and_their_neighbours_freeze_and_hold_after_release():
     assert (tracker.baseline[frozen] > 10.0).all()
 
 
-def test_reading_below_baseline_for_a_while_recovers_fast_even_when_frozen():
+def test_reading_below_baseline_recovers_fast_once_no_hand_is_near_even_when_frozen():
     config = ConditioningConfig()
     tracker = BaselineTracker(_calibration(10.0), config)
     level = np.full(SHAPE, 10.0)
     level[1, 1] = 8.0  # a finger rested there during calibration and has lifted
-    level[3, 3] = 8.0  # the same next to an active channel
-    for _ in range(config.recover_blocks - 1):
+    level[3, 3] = 8.0  # the same next to a channel touched a moment ago
+    for _ in range(config.recover_blocks + 2):  # a contact on the skin: nothing moves down
         _run_block(tracker, level, _one(3, 4))
-    assert tracker.baseline[3, 3] == 10.0  # frozen, not yet recovering
-    tracked = tracker.baseline[1, 1]  # slow tracking so far
-    assert 9.0 < tracked < 10.0
-    _run_block(tracker, level, _one(3, 4))
-    assert tracker.baseline[3, 3] == pytest.approx(10.0 - 2.0 * config.recover_alpha)
-    assert tracker.baseline[1, 1] == pytest.approx(tracked + (8.0 - tracked) * config.recover_alpha)
+    assert tracker.baseline[1, 1] == 10.0 and tracker.baseline[3, 3] == 10.0
+    for _ in range(config.skin_hold_blocks):  # lifted, but the hand may still be near
+        _run_block(tracker, level)
+    assert tracker.baseline[1, 1] == 10.0
+    _run_block(tracker, level)  # the hand is gone: both recover, frozen or not
+    expected = 10.0 - 2.0 * config.recover_alpha
+    assert tracker.baseline[1, 1] == pytest.approx(expected)
+    assert tracker.baseline[3, 3] == pytest.approx(expected)
     for _ in range(4):
-        _run_block(tracker, level, _one(3, 4))
+        _run_block(tracker, level)
     # Fast recovery stops within its threshold; slow tracking does the rest.
     assert 8.0 < tracker.baseline[1, 1] < 8.0 * (1 + config.recover_sigma * NOISE)
+
+
+def test_an_unsteady_low_reading_does_not_recover_fast():
+    config = ConditioningConfig(common_drift=False)
+    tracker = BaselineTracker(_calibration(10.0), config)
+    for i in range(2 * config.recover_blocks):  # a sleeve moving over the skin
+        level = np.full(SHAPE, 10.0)
+        level[2, 2] = 9.7 - 0.1 * (i % 3)  # -3 % .. -5 %, never steady
+        _run_block(tracker, level)
+    assert tracker.baseline[2, 2] > 9.9  # slow tracking only; fast recovery would be ~9.6
 
 
 def test_a_burst_swinging_both_ways_does_not_trigger_recovery():
@@ -227,3 +239,75 @@ def test_frames_must_fit_in_the_current_block():
     assert tracker.frames_to_block_end == BLOCK - 5
     with pytest.raises(ValueError, match="do not fit"):
         tracker.accumulate(np.full((BLOCK, *SHAPE), 10.0), np.zeros((BLOCK, *SHAPE), bool))
+
+
+def test_frozen_channels_follow_a_small_rise_slowly_but_never_a_contact_edge():
+    config = ConditioningConfig(common_drift=False)
+    tracker = BaselineTracker(_calibration(10.0), config)
+    level = np.full(SHAPE, 10.0)
+    level[2, 3] = 10.03  # +0.3 %: drift, below the contact threshold
+    level[3, 2] = 10.2  # +2 %: the edge of the finger on (2, 2)
+    level[2, 2] = 12.0
+    for _ in range(10):
+        _run_block(tracker, level, _one(2, 2))
+    assert tracker.baseline[2, 2] == 10.0  # active: never follows
+    assert tracker.baseline[3, 2] == 10.0  # a contact's edge: never absorbed
+    expected = 10.0 + 0.03 * (1 - (1 - config.frozen_drift_alpha) ** 10)
+    assert tracker.baseline[2, 3] == pytest.approx(expected)  # slowly, at the frozen pace
+    assert config.frozen_drift_alpha < config.drift_alpha
+
+
+def test_nothing_sinks_while_a_contact_is_on_the_skin():
+    config = ConditioningConfig()
+    tracker = BaselineTracker(_calibration(10.0), config)
+    level = np.full(SHAPE, 9.99)  # -0.1 % everywhere: a hand's fringe field, or drift
+    level[0, 0] = 11.0
+    for _ in range(20):
+        _run_block(tracker, level, _one(0, 0))
+    assert (tracker.baseline == 10.0).all()
+    for _ in range(30):  # contact-free: now the skin follows, no faster than drift goes
+        _run_block(tracker, np.full(SHAPE, 9.99))
+    np.testing.assert_allclose(tracker.baseline, 9.99, rtol=2e-4)
+
+
+def test_a_hand_sinking_the_whole_skin_leaves_no_baseline_error_behind():
+    # A grounded forearm near a mutual-capacitance skin pulls every channel down, some
+    # more than others, without any contact being detected.  Nothing may follow it down
+    # (or the channels read as contacts once it leaves), although the common level
+    # keeps sinking at the drift pace.
+    config = ConditioningConfig()
+    tracker = BaselineTracker(_calibration(10.0), config)
+    fringe = np.linspace(-0.002, -0.012, SHAPE[0] * SHAPE[1]).reshape(SHAPE)
+    for _ in range(30):  # 3 s, steady
+        _run_block(tracker, 10.0 * (1 + fringe))
+    assert tracker.baseline.min() > 10.0 * (1 - 30 * config.common_drift_max_drop_rel_per_s * 0.1)
+    for _ in range(3):  # the hand leaves: no channel reads above its baseline
+        _run_block(tracker, np.full(SHAPE, 10.0))
+    assert (tracker.baseline >= 10.0 - 1e-9).all()
+    np.testing.assert_allclose(tracker.baseline, 10.0, rtol=5e-4)
+
+
+def test_common_drift_follows_rises_at_once_and_sinks_at_drift_pace():
+    drift = CommonDrift(max_drop=0.001, disturbed_drop=0.002, max_disturbed_blocks=5)
+    assert drift.update(0.004, touched=False) == 0.004
+    assert drift.update(-0.0005, touched=False) == -0.0005
+    assert drift.update(-0.0015, touched=False) == -0.001  # faster than drift: limited
+    assert not drift.disturbed  # 1.5 blocks of drift behind: not yet a hand
+    assert drift.update(-0.005, touched=False) == -0.001
+    assert drift.disturbed  # sank far faster than drift goes
+    assert drift.update(-0.004, touched=True) == 0.0  # touched: nothing sinks
+    assert drift.disturbed
+    drift.update(0.0, touched=False)  # back where it was: over
+    assert not drift.disturbed
+
+
+def test_a_lasting_sink_is_accepted_after_the_longest_disturbance():
+    drift = CommonDrift(max_drop=0.0001, disturbed_drop=0.001, max_disturbed_blocks=3)
+    drift.update(0.0, touched=False)
+    for _ in range(3):
+        drift.update(-0.01 - drift.level, touched=False)
+        assert drift.disturbed
+    drift.update(-0.01 - drift.level, touched=False)
+    assert not drift.disturbed  # the new level is the reference now
+    drift.update(-0.01 - drift.level, touched=False)
+    assert not drift.disturbed

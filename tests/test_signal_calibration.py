@@ -119,6 +119,27 @@ def test_one_frame_glitches_do_not_disturb_calibration():
     assert calibration.ok and calibration.noise[2, 2] < 2 * np.median(calibration.noise)
 
 
+def test_a_glitch_pulse_from_a_firmware_average_is_no_touch_and_no_bias():
+    # A converter glitch averaged by a 13-frame firmware window: a -2 % box that ends
+    # just before the calibration does (it once left a phantom +1.5 % for 30 s).
+    spec = SkinSpec(seed=15, noise_rel=0.0005, mains_rel=0.0)
+    raw = synth_stream(0.5, spec=spec).astype(np.float64)
+    raw[80:93, 4, 6] *= 0.98
+    calibration = calibrate(raw, CONFIG)
+    assert calibration.ok
+    np.testing.assert_allclose(calibration.baseline[4, 6], skin_baseline(spec)[4, 6], rtol=3e-4)
+    assert calibration.noise[4, 6] < 2 * np.median(calibration.noise)
+
+
+def test_step_noise_measures_frame_to_frame_changes_even_when_quantised():
+    spec = SkinSpec(seed=16, noise_rel=0.001, mains_rel=0.0)
+    raw = synth_stream(0.5, spec=spec).astype(np.float64)
+    calibration = calibrate(raw, CONFIG)
+    np.testing.assert_allclose(np.median(calibration.step_noise), 0.001 * np.sqrt(2), rtol=0.15)
+    coarse = np.round(raw / 0.01) * 0.01  # steps mostly 0, sometimes one LSB
+    assert (calibrate(coarse, CONFIG).step_noise > 0).all()
+
+
 def test_finger_resting_still_through_calibration_is_invisible():
     raw = synth_stream(0.5, [Touch(-1.0, 2.0, 5.0, 5.0, amplitude=0.3)], SkinSpec(seed=7))
     calibration = calibrate(raw, CONFIG)
@@ -164,10 +185,13 @@ def test_dict_round_trip_through_json():
     raw[:, 0, 0] = np.nan
     calibration = calibrate(raw, CONFIG)
     again = Calibration.from_dict(json.loads(json.dumps(calibration.to_dict())))
-    for name in ("baseline", "noise", "dead", "touched"):
+    for name in ("baseline", "noise", "dead", "touched", "step_noise"):
         assert np.array_equal(getattr(again, name), getattr(calibration, name))
         assert getattr(again, name).dtype == getattr(calibration, name).dtype
     assert (again.n_frames, again.message) == (calibration.n_frames, calibration.message)
+    # Records written before step_noise existed still load (no glitch filter then).
+    old = {k: v for k, v in calibration.to_dict().items() if k != "step_noise"}
+    assert Calibration.from_dict(old).step_noise is None
 
 
 def test_from_dict_rejects_malformed_records():
@@ -180,3 +204,5 @@ def test_from_dict_rejects_malformed_records():
         Calibration.from_dict({**good, "baseline": [["a", "b"], ["c", "d"]]})
     with pytest.raises(ValueError, match="finite"):
         Calibration.from_dict({**good, "noise": [[float("nan"), 0.0], [0.0, 0.0]]})
+    with pytest.raises(ValueError, match="step_noise has shape"):
+        Calibration.from_dict({**good, "step_noise": [1.0]})

@@ -50,7 +50,10 @@ def test_moving_average_length_is_settable(smoothing_s):
     raw = 20.0 + np.zeros((200, 3, 3)) + dither
     raw[150:, 1, 1] += 2.0  # a 10 % step
     for spike_filter, delay in ((False, 0), (True, 1)):  # the median of 3 costs one frame
-        config = ConditioningConfig(smoothing_s=smoothing_s, spike_filter=spike_filter)
+        # A one-channel step that holds is what a glitch pulse looks like: no glitch filter.
+        config = ConditioningConfig(
+            smoothing_s=smoothing_s, spike_filter=spike_filter, glitch_filter=False
+        )
         trace = condition_recording(raw, config)[1].signal[:, 1, 1]
         window = config.window_frames
         start = 150 + delay
@@ -158,6 +161,31 @@ def test_touch_landing_during_calibration_is_reported_and_recovered_from():
     assert out.signal[_frame(3.9), 2, 7] == pytest.approx(0.3, abs=0.02)
 
 
+def test_lift_off_releases_within_a_few_frames_not_the_whole_window():
+    spec = SkinSpec(seed=24)
+    press = Touch(1.0, 2.0, 5.0, 5.0, amplitude=0.05, ramp_s=0.01)
+    _, out = condition_recording(synth_stream(3.0, [press], spec), CONFIG)
+    assert out.touched[_frame(1.05) : _frame(1.99)].all()
+    released = _frame(1.99) + int(np.argmin(out.touched[_frame(1.99) :]))
+    # Drop (2 frames) + median (1) + fast average falling to 20 % (4) + debounce (6):
+    # about 13 frames; the 20-frame average alone would take over 20.
+    assert released - _frame(1.99) <= 14
+    assert not out.touched[released:].any()
+
+
+def test_glitch_pulses_on_a_running_skin_make_no_contact():
+    raw = synth_stream(3.0, [], SkinSpec(seed=25, noise_rel=0.001)).astype(np.float64)
+    for start, width, row, col, size in (
+        (200, 13, 2, 2, 1.1),
+        (300, 2, 7, 7, 1.3),
+        (400, 20, 5, 1, 0.9),
+    ):
+        raw[start : start + width, row, col] *= size
+    calibration, out = condition_recording(raw, CONFIG)
+    assert calibration.ok and not out.active.any() and not out.touched.any()
+    assert np.abs(out.signal).max() < 0.003
+
+
 def test_nan_inf_and_spikes_do_not_poison_the_state():
     spec = SkinSpec(seed=15)
     clean = synth_stream(3.0, [Touch(2.0, 2.8, 6.0, 6.0)], spec).astype(np.float64)
@@ -258,6 +286,8 @@ RECORDING[500:520, 4, 4] = np.nan
 RECORDING[600:603, 7, 2] = 1e9  # implausible: held and flagged saturated
 RECORDING[:, 9, 0] = 15.0  # flat: dead
 RECORDING[420, 1, 8] *= 1.5  # a one-frame glitch
+RECORDING[700:713, 2, 5] *= 1.06  # glitches smeared into pulses by a firmware average
+RECORDING[86:89, 0, 4] *= 0.95  # (one during calibration)
 CALIBRATION = calibrate(RECORDING[:100], CONFIG)
 WHOLE = Conditioner(CALIBRATION, CONFIG).process(RECORDING)
 
@@ -269,6 +299,7 @@ def test_frame_by_frame_is_bit_identical_to_all_at_once():
     _assert_identical(ConditionedFrames.concat(parts), WHOLE)
     assert WHOLE.n_contacts.max() == 2 and WHOLE.invalid.sum() == 20
     assert WHOLE.saturated.sum() == 3 and WHOLE.dead[9, 0]
+    assert CALIBRATION.ok and not WHOLE.active[690:740, 1:4, 4:7].any()
 
 
 @settings(max_examples=20, deadline=None, derandomize=True)

@@ -19,6 +19,10 @@ def test_defaults_match_the_published_design():
     assert config.hold_blocks == 5
     assert config.debounce_on_frames == 3
     assert config.debounce_off_frames == 6
+    assert config.release_window_frames == 5  # the fast signal for release: 25 ms
+    assert config.glitch_max_frames == 25  # longer than any firmware average (<= 0.1 s)
+    assert config.skin_hold_blocks == 2 and config.disturbed_max_blocks == 100
+    assert config.drift_alpha > config.frozen_drift_alpha > 0
 
 
 def test_frame_counts_follow_the_settings():
@@ -80,6 +84,14 @@ def test_from_dict_fills_defaults_and_rejects_unknown_keys():
         ({"full_scale": float("inf")}, "full_scale"),
         ({"calibration_s": 0.1}, "calibration_s"),
         ({"min_contact_rel": "0.02"}, "min_contact_rel"),
+        ({"glitch_filter": 1}, "glitch_filter"),
+        ({"glitch_sigma": 0}, "glitch_sigma"),
+        ({"release_smoothing_s": -0.01}, "release_smoothing_s"),
+        ({"fast_on_factor": 0.5}, "fast_on_factor"),
+        ({"skin_hold_s": -1}, "skin_hold_s"),
+        ({"frozen_drift_tau_s": 0}, "frozen_drift_tau_s"),
+        ({"common_drift_max_drop_rel_per_s": 0}, "common_drift_max_drop_rel_per_s"),
+        ({"disturbed_max_s": float("inf")}, "disturbed_max_s"),
     ],
 )
 def test_invalid_settings_are_rejected_with_their_name(changes, message):

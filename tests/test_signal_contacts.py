@@ -189,6 +189,31 @@ def test_no_active_channel_gives_empty_lists():
     assert extract_contacts(np.zeros((3, 2, 2)), np.zeros((3, 2, 2), bool)) == [[], [], []]
 
 
+def test_a_fast_signal_releases_a_lifted_finger_at_once():
+    decay = np.exp(-1 / 200)
+    rules = {"rearm_fraction": 0.25, "release_fraction": 0.2, "peak_decay": decay}
+    smooth = _series([0.0] * 5 + [1.0] * 20 + list(np.linspace(0.95, 0.0, 20)))  # 20-frame mean
+    fast = _series([0.0] * 5 + [1.0] * 20 + [0.75, 0.5, 0.25, 0.0] + [0.0] * 16)  # 4-frame
+    slow_only = _detector(**rules).update_active(smooth)[:, 0, 0]
+    with_fast = _detector(**rules).update_active(smooth, fast)[:, 0, 0]
+    assert slow_only[5:25].all() and with_fast[5:25].all()
+    released_slow = 25 + int(np.argmin(slow_only[25:]))
+    released_fast = 25 + int(np.argmin(with_fast[25:]))
+    assert released_fast == 28  # the fast signal fell below 20 % of the peak
+    assert released_slow >= 40
+
+
+def test_a_fast_signal_well_above_threshold_turns_a_channel_on_early():
+    smooth = _series([0.0, 0.03, 0.06, 0.09, 0.12, 0.15])
+    fast = _series([0.0, 0.12, 0.24, 0.3, 0.3, 0.3])
+    plain = _detector().update_active(smooth)[:, 0, 0]
+    early = _detector(fast_on_factor=2.0).update_active(smooth, fast)[:, 0, 0]
+    assert plain.tolist() == [0, 0, 0, 0, 1, 1]
+    assert early.tolist() == [0, 0, 1, 1, 1, 1]  # 0.24 > 2 x 0.1 two frames sooner
+    with pytest.raises(ValueError, match="fast signal has shape"):
+        _detector().update_active(smooth, fast[:3])
+
+
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
@@ -210,6 +235,7 @@ def test_constructor_rejects_bad_thresholds(kwargs, message):
         ({"rearm_fraction": 0.1, "release_fraction": 0.2}, "release_fraction"),
         ({"peak_decay": 1.0}, "peak_decay"),
         ({"common_mode_quantile": 1.0}, "common_mode_quantile"),
+        ({"fast_on_factor": 0.5}, "fast_on_factor"),
     ],
 )
 def test_settings_reject_bad_rules(rules, message):

@@ -1,4 +1,4 @@
-"""Tests for wovenskin.signal.filters: causal moving average and last-good-value hold."""
+"""Tests for wovenskin.signal.filters: moving average, spike and glitch filters, hold."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from wovenskin.signal.filters import (
     CausalMovingAverage,
     SpikeFilter,
+    StepGlitchFilter,
     hold_last_good,
     median_of_three,
 )
@@ -103,3 +104,88 @@ def test_spike_filter_starts_from_the_given_level_and_chunks_exactly():
     assert np.array_equal(np.concatenate(parts), whole)
     streaming.reset()
     assert np.array_equal(streaming.apply(x), whole)
+
+
+# -- glitch pulses ------------------------------------------------------------------------
+GLITCH_SHAPE = (5, 5)
+LEVEL = 20.0
+
+
+def _quiet_skin(n: int, seed: int = 0) -> np.ndarray:
+    """Raw frames at 20 pF with 0.01 % white noise."""
+    rng = np.random.default_rng(seed)
+    return LEVEL * (1.0 + 1e-4 * rng.standard_normal((n, *GLITCH_SHAPE)))
+
+
+def _glitch_filter(max_frames: int = 25) -> StepGlitchFilter:
+    threshold = np.full(GLITCH_SHAPE, LEVEL * 0.002)
+    return StepGlitchFilter(threshold, np.full(GLITCH_SHAPE, LEVEL), max_frames)
+
+
+def _both_filters(x: np.ndarray, glitches: StepGlitchFilter) -> np.ndarray:
+    """The conditioner's order: glitch pulses first, then the median of three."""
+    return SpikeFilter(np.full(GLITCH_SHAPE, LEVEL)).apply(glitches.apply(x))
+
+
+@pytest.mark.parametrize("width", [2, 3, 13, 20])
+def test_a_firmware_smeared_glitch_pulse_is_removed_without_latency(width):
+    x = _quiet_skin(100)
+    x[40 : 40 + width, 2, 3] += 1.0  # +5 % for `width` frames: a glitch after a W-average
+    out = _both_filters(x, _glitch_filter())
+    assert np.abs(out[:, 2, 3] / LEVEL - 1).max() < 2e-3  # gone, edge frames included
+    clean = _both_filters(_quiet_skin(100), _glitch_filter())
+    others = np.ones(GLITCH_SHAPE, bool)
+    others[2, 3] = False
+    assert np.array_equal(out[:, others], clean[:, others])
+
+
+def test_a_one_frame_spike_is_left_to_the_median_and_starts_nothing():
+    x = _quiet_skin(60)
+    x[30, 1, 1] += 2.0
+    x[45, 3, 3] -= 2.0
+    glitches = _glitch_filter()
+    filtered = glitches.apply(x)
+    assert glitches.pulses == 0
+    np.testing.assert_array_equal(filtered, x)  # nothing to do for this filter
+
+
+def test_a_finger_landing_or_a_burst_on_a_line_passes_untouched():
+    x = _quiet_skin(80)
+    ramp = np.clip((np.arange(80) - 30) / 4.0, 0.0, 1.0)  # lands over 4 frames
+    x[:, 2, 2] += 2.0 * ramp
+    x[:, 2, 1] += 0.6 * ramp
+    x[50:56, 4, :] += 0.8  # a burst steps a whole row at once
+    glitches = _glitch_filter()
+    np.testing.assert_array_equal(glitches.apply(x), x)
+
+
+def test_a_lasting_one_channel_step_passes_after_max_frames():
+    x = _quiet_skin(80)
+    x[20:, 0, 0] += 1.0
+    out = _glitch_filter(max_frames=10).apply(x)[:, 0, 0] - LEVEL
+    assert np.abs(out[21:31]).max() < 0.01  # taken for a glitch for 10 frames
+    np.testing.assert_allclose(out[32:], 1.0, atol=0.01)  # then it is a step after all
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(sizes=st.lists(st.integers(1, 30), min_size=1, max_size=6))
+def test_glitch_filter_gives_the_same_result_for_any_chunking(sizes):
+    x = _quiet_skin(240, seed=3)
+    for start, width, row, col in ((20, 13, 1, 1), (60, 2, 3, 4), (61, 5, 0, 0), (200, 30, 2, 2)):
+        x[start : start + width, row, col] += 1.5
+    whole = _glitch_filter().apply(x)
+    streaming = _glitch_filter()
+    parts = [streaming.apply(x[a:b]) for a, b in _chunks(len(x), sizes)]
+    assert np.array_equal(np.concatenate(parts), whole)
+
+
+def test_glitch_filter_rejects_bad_settings():
+    level = np.full((2, 2), 10.0)
+    with pytest.raises(ValueError, match="grid"):
+        StepGlitchFilter(np.ones(4), level, 10)
+    with pytest.raises(ValueError, match="positive"):
+        StepGlitchFilter(np.ones((2, 2)), np.zeros((2, 2)), 10)
+    with pytest.raises(ValueError, match="max_frames"):
+        StepGlitchFilter(np.ones((2, 2)), level, 0)
+    with pytest.raises(ValueError, match="flat_fraction"):
+        StepGlitchFilter(np.ones((2, 2)), level, 10, flat_fraction=1.5)

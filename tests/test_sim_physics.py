@@ -270,6 +270,41 @@ def test_drift_is_slow_and_of_the_stated_size():
     assert 0.0025 < rms < 0.009
 
 
+def test_drift_is_smooth_on_the_scale_of_frames():
+    physics = replace(
+        SkinPhysics().without_noise(), drift_common_per_min=0.01, drift_channel_per_min=0.004
+    )
+    model = SkinModel(physics, LAYOUT, seed=11)
+    x = model.render_idle(int(120 * FS)).astype(np.float64) / model.baseline_pf
+    per_block = np.sqrt(np.mean((x[20:] - x[:-20]) ** 2))  # rms change over 0.1 s
+    per_minute = np.sqrt(np.mean((x[int(60 * FS) :] - x[: -int(60 * FS)]) ** 2))
+    # A random walk would change by sqrt(0.1 / 60) = 4 % of the minute's change in 0.1 s.
+    assert per_block < 0.01 * per_minute
+
+
+def test_a_light_touch_is_visible_even_on_the_weakest_skin():
+    def peak(physics: SkinPhysics, force: float) -> float:
+        model = SkinModel(physics, LAYOUT, seed=12)
+        x, y = channel_centre(4, 4)
+        relative = change(model, [finger(200, x, y, force, width=9.0)], 200) / model.baseline_pf
+        return float(relative[-1].max())
+
+    typical = quiet()
+    assert 0.025 < peak(typical, 1.0) < 0.06  # several percent under a 1 N press
+    assert 0.007 < peak(typical, 0.25) < 0.02  # about 1 % under a light touch
+    weakest = replace(
+        quiet(),
+        c0_pf=30.0,
+        gain_pf=3.0,
+        pressure_scale_kpa=45.0,
+        channel_edge_sensitivity=0.5,
+        proximity_fraction=-0.015,
+    )
+    # Every weak corner of the ranges at once, the lightest touch: hard, but above the
+    # 0.2 % contact floor of signal conditioning and far above the noise of any skin.
+    assert peak(weakest, 0.25) > 0.0025
+
+
 def test_glitches_are_single_frame_single_channel_spikes():
     physics = replace(SkinPhysics().without_noise(), glitch_rate_hz=5.0, glitch_pf=3.0)
     model = SkinModel(physics, LAYOUT, seed=6)
@@ -300,6 +335,20 @@ def test_quantisation_and_firmware_average():
 
 
 # -- rendering -------------------------------------------------------------------------------------
+def test_firmware_average_starts_from_the_skin_at_rest():
+    # The device was averaging before the host connected: the first frames are no copy
+    # of the first raw reading (its mains and noise would decay over the window, which
+    # once looked like a touch during calibration).
+    physics = replace(SkinPhysics(), mains_pf=0.04, mains_spread=0.8, firmware_average_s=0.1)
+    frames = SkinModel(physics, LAYOUT, seed=13).render_idle(400).astype(np.float64)
+    raw = SkinModel(replace(physics, firmware_average_s=0.0), LAYOUT, seed=13).render_idle(1)
+    rest = frames[200:].mean(axis=0)
+    start_error = np.abs(frames[:20] - rest).max(axis=0)
+    raw_error = np.abs(raw[0] - rest)
+    assert (start_error < 0.2 * raw_error.max()).all()
+    assert start_error.max() < 1.5 * np.abs(frames[200:] - rest).max()
+
+
 def test_render_is_deterministic_for_a_seed():
     physics = SkinPhysics.sample(np.random.default_rng(9))
     x, y = channel_centre(3, 6)

@@ -4,8 +4,10 @@
 returns a :class:`Calibration`:
 
 - ``baseline``: the mean reading of each channel (``C0``);
+- ``step_noise``: the relative sd of each channel's frame-to-frame changes, which sets
+  the glitch filter's threshold;
 - ``noise``: the standard deviation of each channel's *conditioned* signal -- the
-  relative change ``(C - C0) / C0`` after the spike filter and the causal moving
+  relative change ``(C - C0) / C0`` after the glitch filters and the causal moving
   average: the larger of its direct (detrended) estimate and the one predicted from the
   frame-to-frame noise, floored so that a suspiciously quiet channel cannot get a
   near-zero contact threshold;
@@ -18,6 +20,10 @@ returns a :class:`Calibration`:
   phantom contact) and their noise is replaced by the typical noise.  A finger resting
   perfectly still through the whole period cannot be seen at all; recovery fixes that
   after lift-off too.
+
+The frames pass through the same glitch filters as in conditioning first, so a
+converter glitch (smeared into a pulse by a firmware average or not) neither counts as
+a touch nor biases the baseline.
 """
 
 from __future__ import annotations
@@ -28,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wovenskin.signal.config import ConditioningConfig
-from wovenskin.signal.filters import median_of_three
+from wovenskin.signal.filters import StepGlitchFilter, median_of_three
 
 _MAX_LISTED_DEAD = 5
 
@@ -43,6 +49,11 @@ class Calibration:
     touched: np.ndarray  # (R, C) bool: disturbed during calibration
     n_frames: int
     message: str  # one line
+    step_noise: np.ndarray | None = None  # (R, C) relative sd of frame-to-frame changes
+
+    def __post_init__(self) -> None:
+        if self.step_noise is not None:
+            self.step_noise = np.asarray(self.step_noise, dtype=np.float64)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -54,7 +65,7 @@ class Calibration:
         return not bool(self.touched.any()) and bool((~self.dead).any())
 
     def to_dict(self) -> dict:
-        return {
+        d = {
             "baseline": self.baseline.tolist(),
             "noise": self.noise.tolist(),
             "dead": self.dead.tolist(),
@@ -62,6 +73,9 @@ class Calibration:
             "n_frames": int(self.n_frames),
             "message": self.message,
         }
+        if self.step_noise is not None:
+            d["step_noise"] = self.step_noise.tolist()
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> Calibration:
@@ -73,20 +87,30 @@ class Calibration:
             touched = np.asarray(d["touched"], dtype=bool)
             n_frames = int(d["n_frames"])
             message = str(d.get("message", ""))
+            step_noise = d.get("step_noise")
+            if step_noise is not None:
+                step_noise = np.asarray(step_noise, dtype=np.float64)
         except KeyError as exc:
             raise ValueError(f"calibration record lacks key {exc.args[0]!r}") from None
         except (TypeError, ValueError) as exc:
             raise ValueError(f"calibration record has a malformed field: {exc}") from None
         if baseline.ndim != 2 or baseline.size == 0:
             raise ValueError(f"calibration baseline must be a 2-D grid, got {baseline.shape}")
-        for name, arr in (("noise", noise), ("dead", dead), ("touched", touched)):
+        for name, arr in (
+            ("noise", noise),
+            ("dead", dead),
+            ("touched", touched),
+            ("step_noise", baseline if step_noise is None else step_noise),
+        ):
             if arr.shape != baseline.shape:
                 raise ValueError(
                     f"calibration {name} has shape {arr.shape}, baseline has {baseline.shape}"
                 )
         if not (np.isfinite(baseline).all() and np.isfinite(noise).all()):
             raise ValueError("calibration baseline and noise must be finite")
-        return cls(baseline, noise, dead, touched, n_frames, message)
+        if step_noise is not None and not np.isfinite(step_noise).all():
+            raise ValueError("calibration step_noise must be finite")
+        return cls(baseline, noise, dead, touched, n_frames, message, step_noise)
 
 
 def calibrate(raw: np.ndarray, config: ConditioningConfig) -> Calibration:
@@ -129,7 +153,15 @@ def calibrate(raw: np.ndarray, config: ConditioningConfig) -> Calibration:
         dead |= level >= config.full_scale
     live = ~dead
 
-    if config.spike_filter:  # the same one-frame glitch removal as the conditioner
+    step_noise = _step_noise(filled, safe_level, live)
+    if config.glitch_filter:  # the same glitch removal as the conditioner
+        glitches = StepGlitchFilter(
+            glitch_threshold(step_noise, safe_level, live, config),
+            safe_level,
+            config.glitch_max_frames,
+        )
+        filled = glitches.apply(filled)
+    if config.spike_filter:
         filled = np.concatenate(
             (filled[:2], median_of_three(filled[:-2], filled[1:-1], filled[2:]))
         )
@@ -168,7 +200,33 @@ def calibrate(raw: np.ndarray, config: ConditioningConfig) -> Calibration:
         touched=touched,
         n_frames=int(n_frames),
         message=message,
+        step_noise=step_noise,
     )
+
+
+def _step_noise(x: np.ndarray, level: np.ndarray, live: np.ndarray) -> np.ndarray:
+    """Relative sd of frame-to-frame changes per channel (0 for dead channels).
+
+    The rms of the changes without the largest 5 % (glitch edges): unlike a median-based
+    spread it stays above zero on a quantised reading whose changes are mostly 0.
+    """
+    steps = np.abs(np.diff(x, axis=0))
+    keep = max(1, int(0.95 * steps.shape[0]))
+    kept = np.partition(steps, keep - 1, axis=0)[:keep]
+    return np.where(live, np.sqrt(np.mean(kept * kept, axis=0)) / level, 0.0)
+
+
+def glitch_threshold(
+    step_noise: np.ndarray, level: np.ndarray, live: np.ndarray, config: ConditioningConfig
+) -> np.ndarray:
+    """Raw jump (same units as ``level``) above which a one-channel step may be a glitch.
+
+    ``glitch_sigma`` frame-to-frame noise, and never below ``min_contact_rel`` of the
+    level (a step too small to make a contact is not worth removing); dead channels
+    never qualify.
+    """
+    relative = np.maximum(config.glitch_sigma * step_noise, config.min_contact_rel)
+    return np.where(live, relative * level, np.inf)
 
 
 def _moving_average_valid(x: np.ndarray, window: int) -> np.ndarray:

@@ -4,13 +4,15 @@
 
 1. the input guard: NaN/inf and implausible readings hold the channel's last good value
    and are flagged (:mod:`~wovenskin.signal.baseline`),
-2. the spike filter, a causal median of three frames (:mod:`~wovenskin.signal.filters`),
+2. the glitch filters (:mod:`~wovenskin.signal.filters`): glitch pulses smeared by a
+   firmware average are removed, then one-frame spikes by a causal median of three,
 3. the relative change ``(C - C0) / C0``,
-4. the causal moving average (``signal``),
-5. contact detection: common-mode removal, hysteresis and blob seeding
-   (:mod:`~wovenskin.signal.contacts`),
-6. drift tracking of ``C0`` once per block of frames, from the spike-filtered readings
-   and the active channels,
+4. the causal moving average (``signal``) and a short one (the fast signal, for
+   detection only),
+5. contact detection: common-mode removal, hysteresis (with fast release) and blob
+   seeding (:mod:`~wovenskin.signal.contacts`),
+6. drift tracking of ``C0`` once per block of frames, from the filtered readings and
+   the active channels,
 
 then debounces "touched" and extracts contact blobs for the whole chunk.  Frames are cut
 only at baseline-block boundaries, and every step carries its state, so feeding a stream
@@ -38,10 +40,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from wovenskin.signal.baseline import BaselineTracker
-from wovenskin.signal.calibration import Calibration, calibrate
+from wovenskin.signal.calibration import Calibration, calibrate, glitch_threshold
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.signal.contacts import Contact, ContactDetector
-from wovenskin.signal.filters import CausalMovingAverage, SpikeFilter
+from wovenskin.signal.filters import CausalMovingAverage, SpikeFilter, StepGlitchFilter
 
 CALIBRATING = "calibrating"  # LiveConditioner.state values
 RUNNING = "running"
@@ -134,7 +136,20 @@ class Conditioner:
         self.shape = self._tracker.shape
         self.dead = self._tracker.dead
         self._spikes = SpikeFilter(self._tracker.resting_level) if config.spike_filter else None
+        self._glitches = None
+        if config.glitch_filter and calibration.step_noise is not None:
+            threshold = glitch_threshold(
+                calibration.step_noise, self._tracker.resting_level, ~self.dead, config
+            )
+            self._glitches = StepGlitchFilter(
+                threshold, self._tracker.resting_level, config.glitch_max_frames
+            )
         self._smoother = CausalMovingAverage(config.window_frames, self.shape)
+        self._fast = (
+            CausalMovingAverage(config.release_window_frames, self.shape)
+            if config.release_window_frames < config.window_frames
+            else None
+        )
         self._detector = ContactDetector.from_calibration(calibration.noise, self.dead, config)
         self._next_index = 0
 
@@ -164,39 +179,39 @@ class Conditioner:
         start = self._next_index
         if n == 0:
             return ConditionedFrames.empty(self.dead, self.baseline, start)
-        segments = []
-        pos = 0
-        while pos < n:
-            stop = pos + min(self._tracker.frames_to_block_end, n - pos)
-            clean, invalid, saturated = self._tracker.guard(x[pos:stop])
-            if self._spikes is not None:
-                clean = self._spikes.apply(clean)
-            smoothed = self._smoother.apply(self._tracker.relative(clean))
-            active = self._detector.update_active(smoothed)
-            self._tracker.accumulate(clean, active)
-            segments.append((smoothed, active, invalid, saturated, self._detector.last_labels))
-            pos = stop
-        self._next_index += n
-        labels = _join_labels([s[4] for s in segments], [len(s[0]) for s in segments])
-        if len(segments) == 1:
-            signal, active, invalid, saturated, _ = segments[0]
+        if n <= self._tracker.frames_to_block_end:  # one block: the live, per-frame case
+            signal, active, invalid, saturated = self._condition_segment(x)
+            labels = self._detector.last_labels
         else:
+            segments = []
+            pos = 0
+            while pos < n:
+                stop = pos + min(self._tracker.frames_to_block_end, n - pos)
+                segments.append((*self._condition_segment(x[pos:stop]), self._detector.last_labels))
+                pos = stop
+            lengths = [len(s[0]) for s in segments]
+            labels = _join_labels([s[4] for s in segments], lengths)
             signal = np.concatenate([s[0] for s in segments])
             active = np.concatenate([s[1] for s in segments])
-            lengths = [len(s[0]) for s in segments]
             invalid = _join_flags([s[2] for s in segments], lengths, self.shape)
             saturated = _join_flags([s[3] for s in segments], lengths, self.shape)
+        self._next_index += n
         if invalid is None:
             invalid = np.zeros(x.shape, dtype=bool)
         if saturated is None:
             saturated = np.zeros(x.shape, dtype=bool)
         touched = self._detector.update_touched(active)
-        contacts = self._detector.contacts(signal, active, labels)
+        if active.any():
+            contacts = self._detector.contacts(signal, active, labels)
+            n_contacts = np.array([len(c) for c in contacts], dtype=np.int64)
+        else:
+            contacts = [[] for _ in range(n)]
+            n_contacts = np.zeros(n, dtype=np.int64)
         return ConditionedFrames(
             signal=signal.astype(np.float32),
             active=active,
             touched=touched,
-            n_contacts=np.array([len(c) for c in contacts], dtype=np.int64),
+            n_contacts=n_contacts,
             contacts=contacts,
             saturated=saturated,
             dead=self.dead.copy(),
@@ -204,6 +219,23 @@ class Conditioner:
             invalid=invalid,
             index=np.arange(start, start + n, dtype=np.int64),
         )
+
+    def _condition_segment(
+        self, x: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Steps 1-6 on frames ``x`` within one baseline block: ``(signal, active, invalid,
+        saturated)`` with the flags ``None`` when no reading was bad."""
+        clean, invalid, saturated = self._tracker.guard(x)
+        if self._glitches is not None:
+            clean = self._glitches.apply(clean)
+        if self._spikes is not None:
+            clean = self._spikes.apply(clean)
+        relative = self._tracker.relative(clean)
+        smoothed = self._smoother.apply(relative)
+        fast = self._fast.apply(relative) if self._fast is not None else None
+        active = self._detector.update_active(smoothed, fast)
+        self._tracker.accumulate(clean, active)
+        return smoothed, active, invalid, saturated
 
 
 def _join_labels(labels: list[np.ndarray | None], lengths: list[int]) -> np.ndarray | None:

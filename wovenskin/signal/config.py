@@ -23,9 +23,22 @@ class ConditioningConfig:
     - ``sample_rate_hz``: nominal frame rate of the skin.
     - ``calibration_s``: length of the contact-free calibration period (baseline + noise).
     - ``smoothing_s``: length of the causal moving average applied to the relative change
-      (0.1 s = 20 frames at 200 Hz; it also cancels 50 Hz and 60 Hz mains exactly).
-    - ``spike_filter``: take the median of the last three readings before anything else,
-      which removes one-frame single-channel glitches for one frame of latency.
+      (0.1 s = 20 frames at 200 Hz; it also cancels 50 Hz and 60 Hz mains exactly).  Its
+      output is the ``signal``.
+    - ``release_smoothing_s``: length of a second, short moving average (the *fast*
+      signal, used by detection only): a channel also releases once its fast signal falls
+      below ``release_fraction`` of its recent peak, so a lifted finger stops counting
+      within a few frames instead of the whole smoothing window; it also turns a channel
+      on early when it exceeds ``fast_on_factor`` times the on threshold (the fast signal
+      is noisier and does not cancel mains, hence the factor; 0 disables that).  A length
+      not shorter than ``smoothing_s`` disables the fast signal.
+    - ``spike_filter``: take the median of the last three readings, which removes
+      one-frame single-channel glitches for one frame of latency.
+    - ``glitch_filter`` / ``glitch_sigma`` / ``glitch_max_s``: remove glitches that a
+      firmware moving average has smeared into a rectangular pulse (a single channel
+      steps by more than ``max(glitch_sigma * step noise, min_contact_rel)`` in one frame,
+      with its neighbours still, then holds flat), for up to ``glitch_max_s``; see
+      :class:`~wovenskin.signal.filters.StepGlitchFilter`.  No added latency.
 
     Contact detection (per channel, with hysteresis; a channel turns on above
     ``max(contact_on_sigma * noise, min_contact_rel, on_peak_fraction * frame peak)`` and
@@ -34,15 +47,20 @@ class ConditioningConfig:
 
     - ``contact_on_sigma`` / ``contact_off_sigma``: thresholds in units of channel noise.
     - ``min_contact_rel`` / ``min_release_rel``: floors on those thresholds, as relative
-      change, so a very quiet channel cannot trigger on tiny changes.
+      change, so a very quiet channel cannot trigger on what is not noise yet is no touch
+      either (a hovering hand's fringe field, the fabric relaxing, a small baseline
+      error).  0.2 % is well below a light fingertip (~1 % on a typical skin, 0.4 % on
+      the weakest simulated one).
     - ``on_peak_fraction`` / ``off_peak_fraction``: thresholds relative to the frame's
       strongest channel, so the electrode cross-talk of a firm press (a few percent of it
       on its whole row and column) does not light up those lines; 0 disables them.
     - ``rearm_fraction`` / ``release_fraction``: thresholds relative to the channel's own
       recent peak, which decays with time constant ``peak_memory_s``: a channel releases
       once it falls to ``release_fraction`` of what the finger gave it, and cannot fire
-      again on what a firm press leaves behind (the fabric relaxing for a second or two, a
-      small baseline offset) until the memory has faded; 0 disables them.
+      again on what a firm press leaves behind (the fabric's creep, at most ~12 % of the
+      press relaxing within a second) until the memory has faded; 0 disables them.  Kept
+      low enough that the next gesture on the same spot, a second later and lighter, is
+      still seen.
     - ``debounce_on_s``: how long some channel must stay active before the skin counts as
       touched; ``debounce_off_s``: how long all must stay inactive before it counts as
       released.
@@ -57,21 +75,35 @@ class ConditioningConfig:
       a lone channel lingering just above its off threshold cannot keep itself frozen.
 
     Baseline (drift) tracking, updated once per block of frames aligned to the absolute
-    frame index:
+    frame index (see :mod:`wovenskin.signal.baseline` for the rules):
 
     - ``baseline_block_s``: block length (0.1 s cancels 50 Hz and 60 Hz mains).
     - ``drift_tau_s``: time constant with which the baseline follows untouched channels.
+    - ``frozen_drift_tau_s``: time constant with which frozen channels that are not
+      active themselves follow a reading above their baseline (below their contact
+      threshold): channels in the middle of the skin are touched again and again and
+      would otherwise never follow their drift.
     - ``hold_s``: how long a channel stays frozen after it (or a neighbour) was last active.
+    - ``skin_hold_s``: how long the skin counts as touched (a hand near) after its last
+      active channel; no baseline moves down while a hand is near.
     - ``recover_sigma`` / ``recover_min_rel``: ``recover_blocks`` blocks in a row that
       read more than ``max(recover_sigma * noise, recover_min_rel)`` below baseline
-      through most of the block (its upper quartile does) trigger fast recovery (pressing
-      only raises capacitance, so such a baseline is wrong; glitches and interference
-      bursts are shorter, or swing both ways).
+      through most of the block (its upper quartile does), at a level steady within that
+      threshold, while no hand is near, trigger fast recovery (pressing only raises
+      capacitance, so such a baseline is wrong; glitches and interference bursts swing
+      both ways, a hand's fringe field only lasts while the hand is near).
     - ``recover_tau_s``: time constant of that fast recovery.
     - ``common_drift``: every channel, frozen or not, follows the common-mode drift of
-      the skin (thermal drift is largely shared by all channels) at once, block by block;
-      it is measured on the channels whose row and column hold no contact, and skipped
-      when fewer than ``common_drift_min_fraction`` of the live channels are that quiet.
+      the skin (thermal drift is largely shared by all channels), block by block; it is
+      measured on the channels whose row and column hold no contact, and skipped when
+      fewer than ``common_drift_min_fraction`` of the live channels are that quiet.
+    - ``common_drift_max_drop_rel_per_s``: the fastest the common level may sink (a
+      rise is followed at once); thermal drift is far slower (~1 % per minute at most).
+    - ``disturbed_sigma`` / ``disturbed_max_s``: when the quiet channels sink more than
+      ``max(disturbed_sigma * median noise, 2 blocks of the largest drop)`` below where
+      they were, faster than drift goes, the skin is *disturbed* (a hand or sleeve near
+      it: its fringe field pulls channels down even before any contact is seen) until
+      it is back, or for at most ``disturbed_max_s``.
     - ``stale_contact_s`` / ``stale_contact_rel``: a channel frozen without a break for
       longer than ``stale_contact_s`` while reading less than ``stale_contact_rel`` above
       its baseline is re-baselined (a weak, endless "contact" is a baseline error, e.g.
@@ -105,16 +137,21 @@ class ConditioningConfig:
     sample_rate_hz: float = 200.0
     calibration_s: float = 0.5
     smoothing_s: float = 0.1
+    release_smoothing_s: float = 0.025
+    fast_on_factor: float = 2.0
     spike_filter: bool = True
+    glitch_filter: bool = True
+    glitch_sigma: float = 8.0
+    glitch_max_s: float = 0.125
     contact_on_sigma: float = 8.0
     contact_off_sigma: float = 4.0
-    min_contact_rel: float = 0.0025
-    min_release_rel: float = 0.0012
+    min_contact_rel: float = 0.002
+    min_release_rel: float = 0.001
     on_peak_fraction: float = 0.2
     off_peak_fraction: float = 0.1
-    rearm_fraction: float = 0.5
-    release_fraction: float = 0.3
-    peak_memory_s: float = 2.0
+    rearm_fraction: float = 0.25
+    release_fraction: float = 0.2
+    peak_memory_s: float = 1.0
     debounce_on_s: float = 0.015
     debounce_off_s: float = 0.03
     connectivity: int = 4
@@ -122,13 +159,18 @@ class ConditioningConfig:
     common_mode_quantile: float = 0.25
     baseline_block_s: float = 0.1
     drift_tau_s: float = 1.0
+    frozen_drift_tau_s: float = 3.0
     hold_s: float = 0.5
+    skin_hold_s: float = 0.2
     recover_sigma: float = 6.0
     recover_min_rel: float = 0.001
     recover_tau_s: float = 0.05
     recover_blocks: int = 4
     common_drift: bool = True
     common_drift_min_fraction: float = 0.1
+    common_drift_max_drop_rel_per_s: float = 0.001
+    disturbed_sigma: float = 2.0
+    disturbed_max_s: float = 10.0
     stale_contact_s: float = 5.0
     stale_contact_rel: float = 0.01
     max_contact_s: float = 30.0
@@ -165,6 +207,12 @@ class ConditioningConfig:
             "max_rise_rel",
             "max_drop_rel",
             "peak_memory_s",
+            "release_smoothing_s",
+            "glitch_sigma",
+            "glitch_max_s",
+            "frozen_drift_tau_s",
+            "common_drift_max_drop_rel_per_s",
+            "disturbed_max_s",
         )
         for name in positive:
             value = getattr(self, name)
@@ -184,6 +232,9 @@ class ConditioningConfig:
             "rearm_fraction",
             "release_fraction",
             "common_mode_quantile",
+            "fast_on_factor",
+            "skin_hold_s",
+            "disturbed_sigma",
         )
         for name in non_negative:
             value = getattr(self, name)
@@ -193,10 +244,13 @@ class ConditioningConfig:
             raise ValueError(f"recover_blocks must be an integer >= 1, got {self.recover_blocks!r}")
         if self.common_mode_quantile >= 1:
             raise ValueError("common_mode_quantile must be below 1")
+        if 0 < self.fast_on_factor < 1:
+            raise ValueError(f"fast_on_factor must be 0 (off) or >= 1, got {self.fast_on_factor!r}")
         if not isinstance(self.seeded_blobs, bool):
             raise ValueError(f"seeded_blobs must be true or false, got {self.seeded_blobs!r}")
-        if not isinstance(self.spike_filter, bool):
-            raise ValueError(f"spike_filter must be true or false, got {self.spike_filter!r}")
+        for name in ("spike_filter", "glitch_filter"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
         if not 0 <= self.off_peak_fraction <= self.on_peak_fraction < 1:
             raise ValueError(
                 "peak fractions need 0 <= off_peak_fraction <= on_peak_fraction < 1, got "
@@ -239,9 +293,19 @@ class ConditioningConfig:
         return max(1, self._frames(self.smoothing_s))
 
     @property
+    def release_window_frames(self) -> int:
+        """Frames in the short moving average that lets a lifted finger release fast."""
+        return max(1, self._frames(self.release_smoothing_s))
+
+    @property
     def calibration_frames(self) -> int:
         """Frames in one calibration period."""
         return max(1, self._frames(self.calibration_s))
+
+    @property
+    def glitch_max_frames(self) -> int:
+        """Longest glitch pulse (frames) the glitch filter removes."""
+        return max(1, self._frames(self.glitch_max_s))
 
     @property
     def block_frames(self) -> int:
@@ -252,6 +316,21 @@ class ConditioningConfig:
     def hold_blocks(self) -> int:
         """Blocks a channel stays frozen after its last contact (rounded up)."""
         return int(math.ceil(self._frames(self.hold_s) / self.block_frames))
+
+    @property
+    def disturbed_max_blocks(self) -> int:
+        """Blocks after which a lasting sink of the whole skin is accepted as drift."""
+        return max(1, int(math.ceil(self._frames(self.disturbed_max_s) / self.block_frames)))
+
+    @property
+    def skin_hold_blocks(self) -> int:
+        """Blocks the skin counts as touched after its last active channel (rounded up)."""
+        return int(math.ceil(self._frames(self.skin_hold_s) / self.block_frames))
+
+    @property
+    def frozen_drift_alpha(self) -> float:
+        """Per-block weight with which frozen, inactive channels follow a rising level."""
+        return -math.expm1(-self.block_frames / self.sample_rate_hz / self.frozen_drift_tau_s)
 
     @property
     def max_contact_blocks(self) -> int:

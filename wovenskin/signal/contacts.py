@@ -10,7 +10,11 @@
   frame to a fraction of the frame's strongest signal (so the cross-talk of a firm press
   along its electrode lines stays inactive) and to a fraction of the channel's own
   recent peak (so a channel releases cleanly after a firm press and does not fire again
-  on the relaxing fabric).  Finally a channel is active only if its blob holds a *seed*,
+  on the relaxing fabric).  When the caller also passes a *fast* signal (a shorter
+  moving average of the same input), a channel also releases as soon as its fast signal
+  falls below the release level (a lifted finger stops counting within a few frames)
+  and turns on early when its fast signal exceeds ``fast_on_factor`` times its on
+  threshold.  Finally a channel is active only if its blob holds a *seed*,
   a channel above its plain on threshold in that frame, so a lone channel lingering just
   above its off threshold drops out (see :class:`DetectorSettings`);
 - ``touched`` ``(n,)``: the skin counts as touched once some channel has been active for
@@ -160,6 +164,10 @@ class DetectorSettings:
       quantile of all live channels' signals when it is positive, so an offset shared by
       the whole skin (fast thermal drift) never looks like contact; 0 disables it, and so
       does a skin of fewer than 8 live channels.
+    - ``fast_on_factor``: with a fast signal, a channel also turns on (and seeds its
+      blob) when its fast signal exceeds this many times its on (seed) threshold; 0
+      disables it.  A fast signal always releases a channel that falls below
+      ``release_fraction`` of its recent peak.
     """
 
     debounce_on_frames: int = 1
@@ -172,6 +180,7 @@ class DetectorSettings:
     peak_decay: float = 0.0
     seeded_blobs: bool = False
     common_mode_quantile: float = 0.0
+    fast_on_factor: float = 0.0
 
     def __post_init__(self) -> None:
         if self.debounce_on_frames < 1 or self.debounce_off_frames < 1:
@@ -186,6 +195,8 @@ class DetectorSettings:
             raise ValueError("common_mode_quantile must be in [0, 1)")
         if not 0 <= self.peak_decay < 1:
             raise ValueError(f"peak_decay must be in [0, 1), got {self.peak_decay!r}")
+        if not (self.fast_on_factor == 0 or self.fast_on_factor >= 1):
+            raise ValueError(f"fast_on_factor must be 0 or >= 1, got {self.fast_on_factor!r}")
 
     @classmethod
     def from_config(cls, config) -> DetectorSettings:
@@ -201,6 +212,7 @@ class DetectorSettings:
             peak_decay=config.peak_decay,
             seeded_blobs=config.seeded_blobs,
             common_mode_quantile=config.common_mode_quantile,
+            fast_on_factor=config.fast_on_factor,
         )
 
 
@@ -261,8 +273,11 @@ class ContactDetector:
         self._was_active = False
         self._run = self.settings.debounce_off_frames  # as if released long ago
 
-    def update_active(self, signal: np.ndarray) -> np.ndarray:
+    def update_active(self, signal: np.ndarray, fast: np.ndarray | None = None) -> np.ndarray:
         """Per-channel hysteresis on ``signal`` ``(n, R, C)``, then blob seeding.
+
+        ``fast``, when given, is a shorter moving average of the same input, ``(n, R, C)``
+        (see ``fast_on_factor`` and the module doc).
 
         A channel is a candidate at frame ``t`` when its last on event (signal above its
         on threshold) is more recent than its last off event (signal below its off
@@ -276,18 +291,31 @@ class ContactDetector:
         self.last_labels = None
         if n == 0:
             return np.zeros(signal.shape, dtype=bool)
-        signal = self._without_common_mode(signal)
-        seed_threshold, on_threshold, off_threshold = self._thresholds(signal)
+        if fast is not None and fast.shape != signal.shape:
+            raise ValueError(f"fast signal has shape {fast.shape}, signal has {signal.shape}")
+        level = self._common_level(signal)
+        if level is not None:
+            signal = signal - level
+            if fast is not None:
+                fast = fast - level
+        seed_threshold, on_threshold, off_threshold, release = self._thresholds(signal)
+        below = signal < off_threshold
+        above = signal > on_threshold
+        if fast is not None:
+            if release is not None:
+                below |= fast < release
+            if self.settings.fast_on_factor > 0:
+                above |= fast > self.settings.fast_on_factor * on_threshold
         if n == 1:  # the same rule without the time axis (the live, frame-by-frame case)
             t = self._active_t
-            last_on = np.where(signal[0] > on_threshold[0], t, self._last_on)
-            last_off = np.where(signal[0] < off_threshold[0], t, self._last_off)
+            last_on = np.where(above[0], t, self._last_on)
+            last_off = np.where(below[0], t, self._last_off)
             self._last_on, self._last_off = last_on, last_off
             candidate = (last_on > last_off).reshape(signal.shape)
         else:
             t = (self._active_t + np.arange(n, dtype=np.int64)).reshape(n, 1, 1)
-            last_on = np.where(signal > on_threshold, t, -1)
-            last_off = np.where(signal < off_threshold, t, -1)
+            last_on = np.where(above, t, -1)
+            last_off = np.where(below, t, -1)
             np.maximum(last_on[0], self._last_on, out=last_on[0])
             np.maximum(last_off[0], self._last_off, out=last_off[0])
             np.maximum.accumulate(last_on, axis=0, out=last_on)
@@ -300,6 +328,8 @@ class ContactDetector:
         if not self.settings.seeded_blobs or not candidate.any():
             return candidate
         seeds = candidate & (signal > seed_threshold)
+        if fast is not None and self.settings.fast_on_factor > 0:
+            seeds |= candidate & (fast > self.settings.fast_on_factor * seed_threshold)
         labels, count = ndimage.label(candidate, structure=_STRUCTURES[self.settings.connectivity])
         seeded = np.zeros(count + 1, dtype=bool)
         seeded[labels[seeds]] = True
@@ -309,21 +339,28 @@ class ContactDetector:
         self.last_labels = labels
         return active
 
-    def _without_common_mode(self, signal: np.ndarray) -> np.ndarray:
-        """``signal`` minus each frame's common-mode level (see ``common_mode_quantile``)."""
+    def _common_level(self, signal: np.ndarray) -> np.ndarray | float | None:
+        """Each frame's common-mode level to remove (see ``common_mode_quantile``).
+
+        ``None`` when there is nothing to remove; a float for a single frame; else an
+        ``(n, 1, 1)`` array.
+        """
         if self._common_rank is None:
-            return signal
+            return None
         n = signal.shape[0]
         values = signal.reshape(n, -1)
         if self._live_index.size < values.shape[1]:
             values = values[:, self._live_index]
         level = np.partition(values, self._common_rank, axis=1)[:, self._common_rank]
         if n == 1:  # the same arithmetic; subtracting 0.0 would change nothing
-            return signal - level[0] if level[0] > 0 else signal
-        return signal - np.maximum(level, 0.0).reshape(n, 1, 1)
+            return float(level[0]) if level[0] > 0 else None
+        return np.maximum(level, 0.0).reshape(n, 1, 1)
 
-    def _thresholds(self, signal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Seed, on and off thresholds per frame, broadcastable to ``signal`` ``(n, R, C)``."""
+    def _thresholds(
+        self, signal: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """Seed, on and off thresholds and the release level per frame, broadcastable to
+        ``signal`` ``(n, R, C)`` (the release level is ``None`` without a peak envelope)."""
         rules = self.settings
         n = signal.shape[0]
         if n == 1:
@@ -334,7 +371,7 @@ class ContactDetector:
             peak = signal.reshape(n, -1).max(axis=1).reshape(n, 1, 1)
             on = np.maximum(on, rules.on_peak_fraction * peak)
             off = np.maximum(off, rules.off_peak_fraction * peak)
-        seed = on
+        seed, release = on, None
         if rules.rearm_fraction > 0:
             # Envelope of each channel's recent peak, stepped frame by frame (exact for any
             # chunking).  The on threshold uses the envelope before the current frame.
@@ -344,10 +381,13 @@ class ContactDetector:
                 np.maximum(signal[i], envelope[i] * rules.peak_decay, out=envelope[i + 1])
             self._envelope = envelope[n].copy()
             on = np.maximum(on, rules.rearm_fraction * envelope[:n])
-            off = np.maximum(off, rules.release_fraction * envelope[1:])
-        return seed, on, off
+            release = rules.release_fraction * envelope[1:]
+            off = np.maximum(off, release)
+        return seed, on, off, release
 
-    def _frame_thresholds(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _frame_thresholds(
+        self, frame: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """:meth:`_thresholds` for a single frame ``(R, C)``: the same arithmetic, fewer steps."""
         rules = self.settings
         on = self.on_threshold
@@ -356,13 +396,15 @@ class ContactDetector:
             peak = float(frame.max())
             on = np.maximum(on, rules.on_peak_fraction * peak)
             off = np.maximum(off, rules.off_peak_fraction * peak)
-        seed = on
+        seed, release = on, None
         if rules.rearm_fraction > 0:
             before = self._envelope
             self._envelope = np.maximum(frame, before * rules.peak_decay)
             on = np.maximum(on, rules.rearm_fraction * before)
-            off = np.maximum(off, rules.release_fraction * self._envelope)
-        return seed[None], on[None], off[None]
+            release = rules.release_fraction * self._envelope
+            off = np.maximum(off, release)
+            release = release[None]
+        return seed[None], on[None], off[None], release
 
     def update_touched(self, active: np.ndarray) -> np.ndarray:
         """Debounced "something touches the skin" per frame of ``active`` ``(n, R, C)``.
@@ -371,7 +413,7 @@ class ContactDetector:
         a plain loop beats array code for short chunks and stays fast for long ones).
         """
         n = active.shape[0]
-        any_active = active.reshape(n, -1).any(axis=1).tolist()
+        any_active = [bool(active.any())] if n == 1 else active.reshape(n, -1).any(axis=1).tolist()
         touched = np.zeros(n, dtype=bool)
         state = self._touched
         run = self._run  # frames the current any/none state has lasted (capped)
@@ -398,8 +440,10 @@ class ContactDetector:
         """Contact blobs per frame (stateless; see :func:`extract_contacts`)."""
         return extract_contacts(signal, active, self.settings.connectivity, labels)
 
-    def process(self, signal: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[list[Contact]]]:
+    def process(
+        self, signal: np.ndarray, fast: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, list[list[Contact]]]:
         """Run hysteresis, debounce and blob extraction on ``signal`` ``(n, R, C)``."""
-        active = self.update_active(signal)
+        active = self.update_active(signal, fast)
         labels = self.last_labels
         return active, self.update_touched(active), self.contacts(signal, active, labels)

@@ -25,10 +25,13 @@ Signal chain of the channel at ``[r, c]``, frame ``n``:
 6. *Crosstalk* along the electrode lines: a fraction of each channel's change appears on
    every other channel of its row and of its column.
 7. Per-channel *baseline* with thermal *drift* (common mode and per channel,
-   Ornstein-Uhlenbeck), *mains* pickup sampled at a per-channel scan-time offset (stronger
-   where a hand touches: the body is an antenna), white *noise*, electrical noise *bursts*
-   and rare one-frame single-channel *glitches*.
-8. Optional firmware moving average and ADC quantisation.
+   Ornstein-Uhlenbeck, smoothed by the thermal time constant :data:`DRIFT_SMOOTHING_S`:
+   temperature changes slowly, so drift is smooth on the scale of seconds), *mains*
+   pickup sampled at a per-channel scan-time offset (stronger where a hand touches: the
+   body is an antenna), white *noise*, electrical noise *bursts* and rare one-frame
+   single-channel *glitches* of the converter.
+8. Optional firmware moving average (it turns a glitch into a rectangular pulse as long
+   as its window) and ADC quantisation.
 """
 
 from __future__ import annotations
@@ -60,12 +63,20 @@ class SkinPhysics:
     """
 
     # -- baseline and gain ---------------------------------------------------------------
-    c0_pf: float = _param(20.0, 10.0, 40.0, "pF", "nominal no-contact channel capacitance")
+    c0_pf: float = _param(
+        20.0, 10.0, 30.0, "pF", "nominal no-contact channel capacitance (a 10 x 14 mm channel)"
+    )
     baseline_spread: float = _param(
         0.15, 0.05, 0.30, "1", "relative sd of per-channel baselines around c0 (lognormal)"
     )
     gain_pf: float = _param(
-        4.0, 2.0, 8.0, "pF", "change of a fully covered channel at saturating pressure", log=True
+        4.0,
+        3.0,
+        8.0,
+        "pF",
+        "change of a fully covered channel at saturating pressure: 10-80 % of c0, so a "
+        "1-2 N fingertip press changes a channel by several percent and a light one ~1 %",
+        log=True,
     )
     channel_gain_spread: float = _param(
         0.15, 0.05, 0.30, "1", "relative sd of per-channel gain (lognormal)"
@@ -323,6 +334,15 @@ def hertz_pressure_kpa(
     return p0_kpa * np.sqrt(inside)
 
 
+DRIFT_SMOOTHING_S = 10.0
+"""Thermal time constant of the skin (s): the drift processes pass through a first-order
+low-pass of this time constant.  Temperature (and with it the drift) cannot change
+faster than the fabric and the readout warm up or cool down, which takes seconds to
+minutes; a raw Ornstein-Uhlenbeck process would instead wander like a random walk on
+every time scale, i.e. add noise at the frame rate.  It barely changes the rms change
+over a minute (``drift_*_per_min``) and makes the change over 0.1 s about 50x smaller."""
+
+
 def _ou_sigma(rms_change_per_min: float, tau_s: float) -> float:
     """Stationary sd of an Ornstein-Uhlenbeck process with the given rms change over 60 s."""
     return rms_change_per_min / math.sqrt(2.0 * (1.0 - math.exp(-60.0 / tau_s)))
@@ -393,6 +413,8 @@ class SkinModel:
         self._drift_channel_sigma = _ou_sigma(phys.drift_channel_per_min, phys.drift_tau_s)
         self._drift_common = np.array([static.normal(0.0, self._drift_common_sigma)])
         self._drift_channel = static.normal(0.0, self._drift_channel_sigma, channels)
+        self._smooth_common = self._drift_common.copy()  # the low-passed drift processes
+        self._smooth_channel = self._drift_channel.copy()
         self._average_history: np.ndarray | None = None
 
     # -- public -----------------------------------------------------------------------
@@ -435,13 +457,14 @@ class SkinModel:
         change = self._crosstalk(change)
 
         t = (self.frames_rendered + np.arange(n)) / self.sample_rate_hz
-        frames = self._baseline_with_drift(n) + change
+        resting = self._baseline_with_drift(n)
+        frames = resting + change
         frames += self._mains(t, body)
         frames += self._noise_sd * self._rng.standard_normal((n, rows, cols))
         for burst in bursts:
             self._add_burst(frames, burst, offset)
         self._add_glitches(frames)
-        frames = self._firmware_average(frames)
+        frames = self._firmware_average(frames, resting[0])
         if self.physics.adc_lsb_pf > 0:
             frames = np.round(frames / self.physics.adc_lsb_pf) * self.physics.adc_lsb_pf
         self.frames_rendered += n
@@ -574,10 +597,18 @@ class SkinModel:
         path, zf = lfilter([1.0], [1.0, -rho], shocks, axis=0, zi=rho * state[None, :])
         return path, zf[0] / rho
 
+    def _thermal_lowpass(self, path: np.ndarray, state: np.ndarray) -> np.ndarray:
+        """``path`` ``(n, k)`` through the thermal low-pass, from its last output ``state``."""
+        a = math.exp(-1.0 / (self.sample_rate_hz * DRIFT_SMOOTHING_S))
+        return lfilter([1.0 - a], [1.0, -a], path, axis=0, zi=a * state[None, :])[0]
+
     def _baseline_with_drift(self, n: int) -> np.ndarray:
         rows, cols = self.layout.shape
         common, self._drift_common = self._ou(self._drift_common, self._drift_common_sigma, n)
         channel, self._drift_channel = self._ou(self._drift_channel, self._drift_channel_sigma, n)
+        common = self._thermal_lowpass(common, self._smooth_common)
+        channel = self._thermal_lowpass(channel, self._smooth_channel)
+        self._smooth_common, self._smooth_channel = common[-1].copy(), channel[-1].copy()
         drift = common.reshape(n, 1, 1) + channel.reshape(n, rows, cols)
         return self.baseline_pf * (1.0 + drift)
 
@@ -631,12 +662,20 @@ class SkinModel:
             sign = 1.0 if self._rng.random() < 0.5 else -1.0
             frames[t, r, c] += sign * self.physics.glitch_pf * self._rng.lognormal(0.0, 0.5)
 
-    def _firmware_average(self, frames: np.ndarray) -> np.ndarray:
+    def _firmware_average(self, frames: np.ndarray, resting: np.ndarray) -> np.ndarray:
+        """The firmware's moving average.  Before the first frame it has been averaging the
+        skin at rest, as a device that was running before the host connected has:
+        ``resting`` (the first frame's level) with its mains pickup, without noise."""
         window = int(round(self.physics.firmware_average_s * self.sample_rate_hz))
         if window < 2:
             return frames
         if self._average_history is None:
-            self._average_history = np.repeat(frames[:1], window - 1, axis=0)
+            before = (
+                self.frames_rendered - window + 1 + np.arange(window - 1)
+            ) / self.sample_rate_hz
+            rows, cols = self.layout.shape
+            mains = self._mains(before, np.zeros((window - 1, rows, cols)))
+            self._average_history = resting[None] + mains
         joined = np.concatenate([self._average_history, frames], axis=0)
         csum = np.cumsum(joined, axis=0)
         csum = np.concatenate([np.zeros((1, *frames.shape[1:])), csum], axis=0)
