@@ -274,7 +274,7 @@ def bench_detection(
     with console.status(f"conditioning {seeds} simulated streams of {seconds:g} s..."):
         report = run_detection_benchmark(range(seeds), seconds)
     for line in report.lines():
-        console.print(line, highlight=False)
+        console.print(line, highlight=False, soft_wrap=True)
     for seed, label, frac, snr in report.weak_events():
         console.print(f"weak event: seed {seed} {label} touched {frac:.2f} peak {snr:.0f} x noise")
 
