@@ -262,6 +262,43 @@ def bench_io(
         console.print(result.table())
 
 
+@bench_app.command("serial")
+@user_errors
+def bench_serial(
+    stalls: int = typer.Option(10, help="Device stalls to time."),
+    stall_ms: float = typer.Option(30.0, help="The reader's stall threshold."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Serial reader over a real pseudo-terminal: frames, errors, stall-report delay."""
+    import json
+
+    from wovenskin.bench.serial import run_serial_benchmark
+
+    result = run_serial_benchmark(stalls, stall_ms)
+    if json_out:
+        print(json.dumps(result.to_dict()))
+    else:
+        console.print(result.table())
+
+
+@bench_app.command("sim")
+@user_errors
+def bench_sim(
+    seconds: float = typer.Option(60.0, help="Length of the simulated stream to time."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """How many times faster than real time the simulated skin renders, on one core."""
+    import json
+
+    from wovenskin.bench.sim import run_sim_benchmark
+
+    result = run_sim_benchmark(seconds)
+    if json_out:
+        print(json.dumps(result.to_dict()))
+    else:
+        console.print(result.table())
+
+
 @bench_app.command("detection")
 @user_errors
 def bench_detection(
