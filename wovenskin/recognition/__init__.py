@@ -1,0 +1,1 @@
+"""Gesture recognition: window data sets, models, training, evaluation, streaming recogniser and arbiter."""  # noqa: E501
