@@ -161,7 +161,7 @@ class ConvTransformer(_InputNormalized):
         n_layers: int = 4,
         n_heads: int = 4,
         ff_dim: int = 128,
-        stem_channels: int = 32,
+        stem_channels: int = 16,
         dropout: float = 0.1,
         window_norm: bool = True,
         motion_channel: bool = True,

@@ -1,0 +1,333 @@
+"""Tests of wovenskin.recognition.captures: training on labelled captures, capture scoring, LOPO."""
+
+import json
+import shutil
+import subprocess
+import sys
+import textwrap
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import SHARED
+from wovenskin.recognition.captures import (
+    CaptureRecipe,
+    CaptureWindowArray,
+    evaluate_captures,
+    grid_symmetries,
+    internal_validation,
+    leave_one_participant_out,
+    prepare_capture,
+    prepare_captures,
+    train_on_captures,
+    window_ending,
+)
+from wovenskin.recognition.checkpoint import read_meta
+from wovenskin.recognition.datasets import CaptureNormalisation
+from wovenskin.recognition.windows import capture_windows
+from wovenskin.recording.formats import (
+    LabelledCaptures,
+    read_labelled_captures,
+    write_labelled_captures,
+)
+
+HAART = SHARED / "datasets" / "haart" / "haart-train.npz"
+REPO = Path(__file__).resolve().parents[1]
+RATE = 20.0
+CLASSES = ["still", "tap", "none"]
+TINY = CaptureRecipe(
+    hparams={"stem_channels": 4, "dim": 8, "n_blocks": 2, "window_norm": False},
+    epochs=5,
+    batch_size=16,
+    lr=5e-3,
+    frame_step=2,
+    window_frames=10,
+    eval_stride=5,
+    windows_per_capture=16,
+)
+
+
+def synthetic_captures(seed: int = 0, people=("p1", "p2", "p3"), per_cell: int = 4):
+    """Captures of a 4x4 grid at 20 Hz: a still press, a 2 Hz tap, no touch; every person
+    presses with another force (x1, x4, x15) and the contact sits anywhere on the grid."""
+    rng = np.random.default_rng(seed)
+    n_frames = 80
+    t = np.arange(n_frames) / RATE
+    frames, labels, groups = [], [], []
+    for p, person in enumerate(people):
+        force = [1.0, 4.0, 15.0][p % 3] * 40
+        for label in range(len(CLASSES)):
+            for _ in range(per_cell):
+                x = rng.integers(0, 3, size=(n_frames, 4, 4)).astype(np.float64) + 5
+                r, c = rng.integers(0, 3, size=2)
+                if CLASSES[label] == "still":
+                    x[:, r : r + 2, c : c + 2] += force
+                elif CLASSES[label] == "tap":
+                    on = (np.sin(2 * np.pi * 2.0 * t + rng.uniform(0, 6)) > 0).astype(float)
+                    x[:, r : r + 2, c : c + 2] += force * on[:, None, None]
+                frames.append(x)
+                labels.append(label)
+                groups.append(person)
+    return LabelledCaptures(
+        frames=np.round(np.stack(frames)).astype(np.uint16),
+        lengths=np.full(len(labels), n_frames, dtype=np.int64),
+        labels=np.array(labels, dtype=np.int64),
+        class_names=list(CLASSES),
+        groups=np.array(groups),
+        sample_rate_hz=RATE,
+    )
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A tiny model trained on synthetic captures (shared by the tests that score)."""
+    root = tmp_path_factory.mktemp("captures")
+    path = root / "train.npz"
+    write_labelled_captures(path, synthetic_captures(0))
+    events = []
+    result = train_on_captures(
+        path, root / "model", seed=0, threads=1, recipe=TINY, progress=events.append
+    )
+    return path, root / "model", result, events
+
+
+# --------------------------------------------------------------------------- preparation
+
+
+def test_prepare_capture_normalises_then_averages_frame_pairs():
+    frames = np.zeros((7, 2, 2))
+    frames[:, 1, 1] = np.arange(7) * 10.0
+    norm = CaptureNormalisation(reference_scale=10.0, per_capture=False, offset_quantile=0.0)
+    out = prepare_capture(frames, norm, frame_step=2)
+    assert out.shape == (3, 2, 2) and out.dtype == np.float32  # the odd last frame is dropped
+    assert np.allclose(out[:, 1, 1], [0.5, 2.5, 4.5]) and np.all(out[:, 0, 0] == 0)
+    assert np.allclose(prepare_capture(frames, norm, 1)[:, 1, 1], np.arange(7))
+    assert prepare_capture(frames[:1], norm, 2).shape == (1, 2, 2)  # shorter than a step
+
+
+def test_window_ending_pads_in_front_like_capture_windows():
+    x = np.arange(6, dtype=np.float32).reshape(6, 1, 1)
+    assert window_ending(x, 5, 3).ravel().tolist() == [3, 4, 5]
+    assert window_ending(x, 1, 4).ravel().tolist() == [0, 0, 0, 1]
+    assert np.array_equal(window_ending(x, 5, 8), capture_windows(x, 6, 8, 1)[0])
+
+
+def test_grid_symmetries_are_the_distinct_flips_and_transposes():
+    w = np.arange(2 * 3 * 3, dtype=np.float32).reshape(1, 2, 3, 3)
+    views = list(grid_symmetries(w, transpose=True))
+    assert len(views) == 8 and np.array_equal(views[0], w)
+    assert len({v.tobytes() for v in (np.ascontiguousarray(v) for v in views)}) == 8
+    for v in views:  # every view is a rearrangement of the same frame values
+        assert np.array_equal(np.sort(v[0, 1].ravel()), np.sort(w[0, 1].ravel()))
+    wide = np.zeros((1, 2, 3, 4))
+    assert len(list(grid_symmetries(wide, transpose=True))) == 4  # no transpose off-square
+
+
+def test_capture_window_array_is_random_per_read_and_deterministic():
+    rng = np.random.default_rng(1)
+    prepared = {0: rng.normal(size=(30, 3, 3)).astype(np.float32), 5: np.ones((4, 3, 3))}
+    fixed = [(0, 29), (5, 3)]
+    arr = CaptureWindowArray(prepared, 8, [0, 0, 0, 5], fixed, seed=3, symmetries=False)
+    assert arr.shape == (6, 8, 3, 3) and len(arr) == 6
+    first = arr[np.array([0, 1, 2])]
+    assert np.array_equal(first, arr[np.array([0, 1, 2])])  # same read, same windows
+    assert not np.array_equal(first[:2], arr[np.array([0, 1, 3])][:2])  # another batch
+    windows_of_0 = capture_windows(prepared[0], 30, 8, 1)
+    for w in first:  # without symmetries a random window is a slice of its capture
+        assert any(np.array_equal(w, c) for c in windows_of_0)
+    assert np.array_equal(arr[4], prepared[0][22:30])
+    assert np.array_equal(arr[5], capture_windows(prepared[5], 4, 8, 1)[0])  # padded short one
+    assert np.array_equal(arr[3][:4], np.zeros((4, 3, 3)))
+    with pytest.raises(IndexError):
+        arr[np.array([6])]
+    other_seed = CaptureWindowArray(prepared, 8, [0, 0, 0, 5], fixed, seed=4)
+    assert not np.array_equal(other_seed[np.array([0, 1, 2])], first)
+
+
+def test_internal_validation_holds_out_one_capture_per_person_and_class():
+    c = synthetic_captures(0)
+    everything = np.arange(len(c.labels))
+    train, val = internal_validation(c.labels, c.groups, everything, seed=0)
+    assert len(val) == 9 and np.intersect1d(train, val).size == 0
+    assert np.array_equal(np.union1d(train, val), everything)
+    cells = {(str(c.groups[i]), int(c.labels[i])) for i in val}
+    assert len(cells) == 9
+    again = internal_validation(c.labels, c.groups, everything, seed=0)
+    assert np.array_equal(again[1], val)
+    small = np.flatnonzero(c.groups == "p1")[[0, 1, 4, 5]]  # two of each of two classes
+    train_s, val_s = internal_validation(c.labels, c.groups, small)
+    assert len(val_s) == 2 and len(train_s) == 2  # fallback: one of every class
+    with pytest.raises(ValueError, match="too few captures"):
+        internal_validation(c.labels, c.groups, small[[0, 2]])
+
+
+# --------------------------------------------------------------------------- train / evaluate
+
+
+def test_train_records_what_evaluation_needs(trained):
+    path, model_dir, result, events = trained
+    meta = read_meta(model_dir)
+    assert (model_dir / "model.onnx").is_file() and (model_dir / "model.pt").is_file()
+    assert meta.class_names == tuple(CLASSES) and meta.sample_rate_hz == RATE
+    assert meta.window == TINY.window_frames and (meta.rows, meta.cols) == (4, 4)
+    assert meta.conditioning["frame_step"] == 2
+    norm = CaptureNormalisation.from_dict(meta.conditioning["capture_normalisation"])
+    assert norm.reference_scale is not None and norm.reference_scale > 0
+    info = meta.training_data["captures"]
+    assert info["recipe"]["eval_stride"] == TINY.eval_stride
+    assert info["n_train_captures"] + info["n_val_captures"] == 36
+    assert info["val_groups"] == ["p1", "p2", "p3"]
+    assert result.epochs_run >= 1 and 1 <= result.best_epoch <= result.epochs_run
+    epochs = [e.epoch for e in events if e.kind == "epoch"]
+    assert epochs == list(range(1, result.epochs_run + 1))
+    assert any(e.kind == "batch" for e in events)
+
+
+def test_resume_of_a_finished_run_keeps_its_result(trained, tmp_path):
+    path, model_dir, result, _ = trained
+    again = tmp_path / "model"
+    shutil.copytree(model_dir, again)
+    resumed = train_on_captures(path, again, threads=1, recipe=TINY, resume=True)
+    assert resumed.best_epoch == result.best_epoch
+    assert resumed.best_val_accuracy == result.best_val_accuracy
+    with pytest.raises(ValueError, match="cannot resume"):
+        train_on_captures(path, again, threads=1, recipe=replace(TINY, lr=1e-3), resume=True)
+
+
+def test_evaluation_needs_no_torch(trained):
+    path, model_dir, _, _ = trained
+    script = textwrap.dedent(
+        f"""
+        import sys
+        from wovenskin.recognition.captures import evaluate_captures
+        d = evaluate_captures({str(path)!r}, {str(model_dir)!r}).to_dict()
+        print("CAPTURES", d["n_captures"])
+        print("TORCH", sorted(m for m in sys.modules if m == "torch" or m.startswith("torch.")))
+        """
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stderr
+    assert "CAPTURES 36" in result.stdout and "TORCH []" in result.stdout
+
+
+def test_evaluate_scores_new_captures_one_label_each(trained, tmp_path):
+    _, model_dir, _, _ = trained
+    test_path = tmp_path / "test.npz"
+    write_labelled_captures(test_path, synthetic_captures(seed=7, people=("q1", "q2", "q3")))
+    evaluation = evaluate_captures(test_path, model_dir)
+    d = evaluation.to_dict()
+    assert d["n_captures"] == 36 and d["n_windows"] == 36 * 7  # ends 9, 14, ..., 39
+    assert d["capture_accuracy"] >= 0.9  # force x1..x15 and any position: learnt anyway
+    assert d["window_accuracy"] >= 0.75
+    assert d["class_names"] == CLASSES and set(d["per_class"]) == set(CLASSES)
+    assert set(d["per_class"]["tap"]) == {"precision", "recall", "f1", "support"}
+    assert np.sum(d["confusion"]) == 36 and np.sum(d["window_confusion"]) == 36 * 7
+    assert set(d["per_group"]) == {"q1", "q2", "q3"}
+    assert d["seen_in_training"] == 0 and d["warnings"] == []
+    json.dumps(d)  # JSON-ready
+
+
+def test_evaluating_training_captures_is_flagged(trained):
+    path, model_dir, result, events = trained
+    d = evaluate_captures(path, model_dir).to_dict()
+    n_train = read_meta(model_dir).training_data["captures"]["n_train_captures"]
+    assert d["seen_in_training"] == n_train and "used to train" in d["warnings"][0]
+
+
+def test_evaluate_refuses_files_and_models_that_do_not_match(trained, tmp_path):
+    _, model_dir, _, _ = trained
+    c = synthetic_captures(1, people=("q1",), per_cell=1)
+    write_labelled_captures(tmp_path / "names.npz", replace(c, class_names=["a", "b", "c"]))
+    with pytest.raises(ValueError, match=r"names.npz has classes a, b, c; model .* still"):
+        evaluate_captures(tmp_path / "names.npz", model_dir)
+    write_labelled_captures(tmp_path / "rate.npz", replace(c, sample_rate_hz=54.0))
+    with pytest.raises(ValueError, match="sampled at 54 Hz; model .* expects 20 Hz"):
+        evaluate_captures(tmp_path / "rate.npz", model_dir)
+    with pytest.raises(FileNotFoundError, match="no such captures file"):
+        evaluate_captures(tmp_path / "missing.npz", model_dir)
+    streaming = tmp_path / "streaming-model"
+    shutil.copytree(model_dir, streaming)
+    meta = json.loads((streaming / "meta.json").read_text())
+    meta["conditioning"] = {"smoothing_ms": 30.0}
+    (streaming / "meta.json").write_text(json.dumps(meta))
+    write_labelled_captures(tmp_path / "ok.npz", c)
+    with pytest.raises(ValueError, match="not trained on labelled captures"):
+        evaluate_captures(tmp_path / "ok.npz", streaming)
+
+
+def test_val_groups_hold_out_whole_participants(tmp_path):
+    path = tmp_path / "c.npz"
+    write_labelled_captures(path, synthetic_captures(0, per_cell=2))
+    recipe = replace(TINY, epochs=1)
+    train_on_captures(path, tmp_path / "m", val_groups=["p2"], threads=1, recipe=recipe)
+    info = read_meta(tmp_path / "m").training_data["captures"]
+    assert info["val_groups"] == ["p2"] and info["train_groups"] == ["p1", "p3"]
+    assert info["n_val_captures"] == 6
+    with pytest.raises(ValueError, match="validation group.* p9 not in the file"):
+        train_on_captures(path, tmp_path / "n", val_groups=["p9"], recipe=recipe)
+    with pytest.raises(ValueError, match="every capture would be validation"):
+        train_on_captures(path, tmp_path / "n", val_groups=["p1", "p2", "p3"], recipe=recipe)
+
+
+def test_leave_one_participant_out(tmp_path):
+    path = tmp_path / "c.npz"
+    write_labelled_captures(path, synthetic_captures(0, per_cell=3))
+    seen = []
+    result = leave_one_participant_out(
+        path, tmp_path / "lopo", threads=1, recipe=replace(TINY, epochs=2), on_fold=seen.append
+    )
+    assert [f.participant for f in result.folds] == ["p1", "p2", "p3"]
+    assert [f.index for f in seen] == [1, 2, 3] and all(f.folds == 3 for f in seen)
+    for fold in result.folds:
+        assert fold.evaluation.captures.n == 9
+        assert set(fold.evaluation.groups.tolist()) == {fold.participant}
+        assert fold.evaluation.seen_in_training == 0  # the held-out person was never trained on
+        train_groups = read_meta(fold.checkpoint_dir).training_data["captures"]["train_groups"]
+        assert fold.participant not in train_groups
+    d = json.loads((tmp_path / "lopo" / "lopo.json").read_text())
+    assert d["n_captures"] == 27 and len(d["folds"]) == 3
+    hits = sum(f.evaluation.capture_accuracy * 9 for f in result.folds)
+    assert d["capture_accuracy"] == pytest.approx(hits / 27)
+    assert d["mean_fold_capture_accuracy"] == pytest.approx(hits / 27)
+    only = leave_one_participant_out(
+        path, tmp_path / "one", participants=["p2"], threads=1, recipe=replace(TINY, epochs=1)
+    )
+    assert [f.participant for f in only.folds] == ["p2"]
+    with pytest.raises(ValueError, match="participant.* p7 not in"):
+        leave_one_participant_out(path, tmp_path / "x", participants=["p7"], recipe=TINY)
+
+
+def test_recipe_rejects_bad_settings():
+    with pytest.raises(ValueError, match="window_frames must be an integer >= 1"):
+        CaptureRecipe(window_frames=0)
+    with pytest.raises(ValueError, match="lr must be positive"):
+        CaptureRecipe(lr=0.0)
+    assert CaptureRecipe().resolved_hparams()["dim"] == 32
+    assert CaptureRecipe(model="bilstm").resolved_hparams() == {}
+
+
+# --------------------------------------------------------------------------- real data
+
+
+@pytest.mark.skipif(not HAART.exists(), reason="HAART captures not available")
+def test_haart_two_participants_train_and_score(tmp_path):
+    c = read_labelled_captures(HAART)
+    keep = np.flatnonzero(np.isin(c.groups, ["p3", "p4"]))[::4]  # 42 captures, all classes
+    subset = LabelledCaptures(
+        c.frames[keep, :216], np.minimum(c.lengths[keep], 216), c.labels[keep],
+        c.class_names, c.groups[keep], c.sample_rate_hz,
+    )  # fmt: skip
+    path = tmp_path / "haart-small.npz"
+    write_labelled_captures(path, subset)
+    prepared = prepare_captures(subset, CaptureNormalisation().resolved(subset), 2)
+    assert prepared[0].shape == (108, 10, 10)
+    recipe = replace(TINY, window_frames=54, eval_stride=27, epochs=1)
+    train_on_captures(path, tmp_path / "m", threads=1, recipe=recipe)
+    d = evaluate_captures(path, tmp_path / "m").to_dict()
+    assert d["n_captures"] == len(keep) and d["n_windows"] == 3 * len(keep)
+    assert d["class_names"] == list(c.class_names)
+    assert np.sum(d["confusion"]) == len(keep)

@@ -1,0 +1,208 @@
+"""Tests of wovenskin.recognition.pipeline: offline equals live, LiveSkin blocks, model checks."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import torch
+
+from wovenskin.gestures import CLASS_NAMES, INVALID
+from wovenskin.live import LiveBlock, LiveSkin
+from wovenskin.recognition.arbiter import DWELL, LIFT_OFF
+from wovenskin.recognition.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.recognition.event_scoring import score_stream
+from wovenskin.recognition.models import build_model
+from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+from wovenskin.recognition.pipeline import (
+    RESET,
+    LivePipeline,
+    PipelineSettings,
+    conditioning_for_model,
+    load_recognizer,
+    run_pipeline,
+)
+from wovenskin.recording.formats import LabelledStream, write_labelled_stream
+from wovenskin.recording.inspect import convert_file
+from wovenskin.signal import ConditioningConfig
+from wovenskin.sim.stream import simulate_stream
+from wovenskin.skin.source import open_source
+
+
+def make_model(directory: Path, conditioning: dict | None = None) -> Path:
+    """A tiny untrained TCN whose logits spread widely, so its classes change often."""
+    torch.manual_seed(1)
+    hparams = {"dim": 16, "n_blocks": 2, "stem_channels": 8}
+    model = build_model("tcn", 10, 10, 30, len(CLASS_NAMES), **hparams)
+    with torch.no_grad():
+        last = [m for m in model.modules() if isinstance(m, torch.nn.Linear)][-1]
+        last.weight.mul_(30.0)
+        last.bias.mul_(30.0)
+    meta = CheckpointMeta(
+        model_name="tcn",
+        hparams=hparams,
+        class_names=CLASS_NAMES,
+        rows=10,
+        cols=10,
+        window=30,
+        sample_rate_hz=200.0,
+        conditioning=ConditioningConfig().to_dict() if conditioning is None else conditioning,
+    )
+    save_checkpoint(directory, model, meta)
+    return directory
+
+
+@pytest.fixture(scope="module")
+def model_dir(tmp_path_factory) -> Path:
+    return make_model(tmp_path_factory.mktemp("model"))
+
+
+@pytest.fixture(scope="module")
+def stream() -> LabelledStream:
+    return simulate_stream(12.0, seed=5)
+
+
+def summary(commands):
+    return [(c.t, c.gesture, c.reason) for c in commands]
+
+
+@pytest.mark.parametrize("every", [1, 3])
+def test_offline_equals_the_live_path_frame_by_frame(model_dir, stream, every: int) -> None:
+    recognizer = OnnxRecognizer(model_dir)
+    settings = PipelineSettings(every=every)
+    offline = run_pipeline(stream, recognizer, settings)
+    frame_by_frame = run_pipeline(stream, recognizer, settings, block_frames=1)
+    in_live_blocks = run_pipeline(stream, recognizer, settings, block_frames=4)
+    assert len(offline.commands) >= 6  # a meaningful comparison: several commands
+    assert {c.reason for c in offline.commands} >= {DWELL, LIFT_OFF}
+    assert summary(frame_by_frame.commands) == summary(offline.commands)
+    assert summary(in_live_blocks.commands) == summary(offline.commands)
+    assert offline.windows_inferred == frame_by_frame.windows_inferred
+    assert 0 < offline.windows_inferred < offline.windows_predicted
+    assert offline.n_frames == 2400 and offline.duration_s == pytest.approx(12.0)
+    assert offline.realtime_factor > 0 and "calibration ok" in offline.calibration
+
+
+def test_live_pipeline_on_live_skin_blocks(model_dir, stream, tmp_path) -> None:
+    path = tmp_path / "s.npz"
+    write_labelled_stream(path, stream)
+    recognizer = OnnxRecognizer(model_dir)
+    live_skin = LiveSkin(open_source(f"replay:{path}?speed=0"), conditioning_for_model(recognizer))
+    pipeline = LivePipeline.for_live_skin(live_skin, recognizer)
+    live_skin.start()
+    seen_touch_probabilities = False
+    try:
+        while not live_skin.state.ended:
+            block = live_skin.step(timeout=0.01)
+            if block is not None:
+                pipeline.feed(block)
+                seen_touch_probabilities |= pipeline.latest_top()[0] != INVALID
+    finally:
+        live_skin.close()
+    expected = run_pipeline(path, recognizer).commands
+    assert len(expected) >= 6
+    assert summary(pipeline.changes) == summary(expected)
+    assert seen_touch_probabilities
+    assert pipeline.latest_probabilities.shape == (len(CLASS_NAMES),)
+
+
+class ContactMeansSwipeRight:
+    """A stand-in model: every window with contact is a confident ``swipe_right``."""
+
+    class_names = CLASS_NAMES
+
+    class meta:  # noqa: N801 - mimics CheckpointMeta's window only
+        window = 30
+
+    def predict_proba(self, windows: np.ndarray) -> np.ndarray:
+        out = np.zeros((len(windows), len(CLASS_NAMES)), dtype=np.float32)
+        out[:, CLASS_NAMES.index("swipe_right")] = 1.0
+        return out
+
+
+def test_each_touch_gives_one_command_after_the_dwell_until_lift_off() -> None:
+    stream = simulate_stream(15.0, seed=2, gestures=["swipe_right"], invalid_fraction=0.0)
+    result = run_pipeline(stream, ContactMeansSwipeRight())
+    commands = result.commands
+    starts = [c for c in commands if c.gesture is not None]
+    ends = [c for c in commands if c.gesture is None]
+    assert len(starts) == len(stream.event_labels) >= 4
+    assert [c.reason for c in starts] == [DWELL] * len(starts)
+    assert [c.reason for c in ends] == [LIFT_OFF] * len(ends) and len(ends) == len(starts)
+    for start, end, begin, finish in zip(
+        starts, ends, stream.event_start_s, stream.event_end_s, strict=True
+    ):
+        assert begin + 0.1 <= start.t <= begin + 0.3  # contact seen, then the dwell
+        assert start.t < end.t <= finish + 0.1  # lift-off ends it within the debounce
+    scores = score_stream(commands, stream)
+    assert (scores.recall, scores.precision, scores.n_false) == (1.0, 1.0, 0)
+
+
+def test_live_pipeline_state_and_reset() -> None:
+    pipeline = LivePipeline(ContactMeansSwipeRight(), 10, 10, 200.0)
+    signal = np.zeros((60, 10, 10), dtype=np.float32)
+    signal[:, 4:6, 4:6] = 0.05
+    active = signal > 0
+    changes = pipeline.process(np.arange(60) / 200.0, signal, active, np.ones(60, dtype=bool))
+    assert summary(changes) == [(49 / 200.0, "swipe_right", DWELL)]  # first window at 29
+    assert pipeline.active == "swipe_right" and pipeline.touched
+    assert pipeline.latest_top() == ("swipe_right", 1.0)
+    ended = pipeline.reset()
+    assert ended is not None and (ended.gesture, ended.reason) == (None, RESET)
+    assert pipeline.active is None and pipeline.latest_top()[0] == INVALID
+    with pytest.raises(ValueError, match="3 frame times for 60 frames"):
+        pipeline.process(np.arange(3.0), signal, active, np.ones(60, dtype=bool))
+
+
+def test_a_recalibration_between_blocks_resets_the_pipeline() -> None:
+    pipeline = LivePipeline(ContactMeansSwipeRight(), 10, 10, 200.0)
+
+    def block(first_index: int, t0: float) -> LiveBlock:
+        signal = np.zeros((60, 10, 10), dtype=np.float32)
+        signal[:, 2:4, 2:4] = 0.05
+        cond = SimpleNamespace(
+            signal=signal,
+            active=signal > 0,
+            touched=np.ones(60, dtype=bool),
+            index=np.arange(first_index, first_index + 60),
+        )
+        return LiveBlock(t0 + np.arange(60) / 200.0, cond)
+
+    assert summary(pipeline.feed(block(100, 1.0))) == [(1.0 + 49 / 200.0, "swipe_right", DWELL)]
+    assert pipeline.feed(block(160, 1.3)) == []  # the next frames: nothing changes
+    changes = pipeline.feed(block(100, 5.0))  # a new conditioner: frames restart at 100
+    assert summary(changes) == [(5.0, None, RESET), (5.0 + 49 / 200.0, "swipe_right", DWELL)]
+
+
+def test_paths_and_bad_input(model_dir, stream, tmp_path) -> None:
+    npz = tmp_path / "s.npz"
+    write_labelled_stream(npz, stream)
+    wsrec = tmp_path / "s.wsrec"
+    convert_file(npz, wsrec)
+    recognizer = load_recognizer(model_dir)
+    expected = summary(run_pipeline(stream, recognizer).commands)
+    assert summary(run_pipeline(npz, recognizer).commands) == expected
+    assert summary(run_pipeline(wsrec, recognizer).commands) == expected
+    with pytest.raises(FileNotFoundError, match="no such file"):
+        run_pipeline(tmp_path / "missing.npz", recognizer)
+    with pytest.raises(FileNotFoundError, match="no such model directory"):
+        load_recognizer(tmp_path / "nowhere")
+    with pytest.raises(ValueError, match="trained with other conditioning settings"):
+        run_pipeline(stream, recognizer, conditioning=ConditioningConfig(smoothing_s=0.05))
+    small = simulate_stream(3.0, seed=1, layout=None)
+    small.frames = small.frames[:, :8]
+    with pytest.raises(ValueError, match="model expects 10x10 frames at 200 Hz, got 8x10"):
+        run_pipeline(small, recognizer)
+    short = LabelledStream(stream.frames[:50], stream.t[:50], 200.0)
+    with pytest.raises(ValueError, match="fewer than the 100 the calibration needs"):
+        run_pipeline(short, recognizer)
+    with pytest.raises(ValueError, match="block_frames"):
+        run_pipeline(stream, recognizer, block_frames=0)
+
+
+def test_models_not_trained_on_streams_are_refused(tmp_path) -> None:
+    captures = make_model(tmp_path / "captures", {"capture_normalisation": {"scale": 1.0}})
+    with pytest.raises(ValueError, match="not trained on conditioned skin streams"):
+        conditioning_for_model(OnnxRecognizer(captures))
