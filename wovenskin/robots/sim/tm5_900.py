@@ -1,0 +1,107 @@
+"""The Techman TM5-900: its DH table, joint limits, named postures and DH kinematics.
+
+The numbers are the arm's published standard-DH parameters; ``tm5_900.xml`` (the MuJoCo
+model) is built from the same table and the tests check that both agree. Frames: the
+base frame sits at the bottom of the base, z up; the tool centre point (TCP) lies
+:data:`TOOL_LENGTH` along the flange's z axis, between the gripper's fingertips.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wovenskin.robots.base import N_JOINTS, JointLimits
+
+
+@dataclass(frozen=True)
+class DHLink:
+    """One row of a standard DH table: Rz(theta + offset) Tz(d) Tx(a) Rx(alpha)."""
+
+    d: float  # m
+    a: float  # m
+    alpha: float  # rad
+    theta_offset: float  # rad
+
+
+DH: tuple[DHLink, ...] = (
+    DHLink(d=0.1452, a=0.0, alpha=-np.pi / 2, theta_offset=0.0),
+    DHLink(d=0.0, a=0.429, alpha=0.0, theta_offset=-np.pi / 2),
+    DHLink(d=0.0, a=0.4115, alpha=0.0, theta_offset=0.0),
+    DHLink(d=-0.1223, a=0.0, alpha=np.pi / 2, theta_offset=np.pi / 2),
+    DHLink(d=0.106, a=0.0, alpha=np.pi / 2, theta_offset=0.0),
+    DHLink(d=0.11315, a=0.0, alpha=0.0, theta_offset=0.0),
+)
+
+TOOL_LENGTH = 0.14  # m, flange -> TCP along the flange z axis (the gripper's fingertips)
+
+JOINT_LIMITS = JointLimits(
+    lower=np.deg2rad([-270.0, -180.0, -155.0, -180.0, -180.0, -270.0]),
+    upper=np.deg2rad([270.0, 180.0, 155.0, 180.0, 180.0, 270.0]),
+    max_speed=np.deg2rad([180.0, 180.0, 180.0, 225.0, 225.0, 225.0]),
+)
+
+JOINT_NAMES = ("joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
+
+HOME_Q = np.zeros(N_JOINTS)  # all joints at zero: the arm stands upright
+INITIAL_Q = np.deg2rad([0.0, 0.0, 90.0, 0.0, 90.0, 0.0])  # TCP 0.52 m in front, tool down
+
+
+def _joint_vector(q: np.ndarray) -> np.ndarray:
+    joints = np.asarray(q, dtype=float)
+    if joints.shape != (N_JOINTS,):
+        raise ValueError(f"joint vector must have shape ({N_JOINTS},), got {joints.shape}")
+    if not np.all(np.isfinite(joints)):
+        raise ValueError("joint vector has non-finite values")
+    return joints
+
+
+def dh_transform(link: DHLink, theta: float) -> np.ndarray:
+    """The 4x4 transform of one DH row at joint angle ``theta`` (frame i-1 <- frame i)."""
+    ct, st = np.cos(theta + link.theta_offset), np.sin(theta + link.theta_offset)
+    ca, sa = np.cos(link.alpha), np.sin(link.alpha)
+    return np.array(
+        [
+            [ct, -st * ca, st * sa, link.a * ct],
+            [st, ct * ca, -ct * sa, link.a * st],
+            [0.0, sa, ca, link.d],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
+
+
+def tool_transform() -> np.ndarray:
+    """Flange <- TCP."""
+    transform = np.eye(4)
+    transform[2, 3] = TOOL_LENGTH
+    return transform
+
+
+def frame_transforms(q: np.ndarray) -> list[np.ndarray]:
+    """Base <- DH frame i for i = 0..6 (frame 0 is the base, frame 6 the flange)."""
+    joints = _joint_vector(q)
+    frames = [np.eye(4)]
+    for link, theta in zip(DH, joints, strict=True):
+        frames.append(frames[-1] @ dh_transform(link, theta))
+    return frames
+
+
+def forward_kinematics(q: np.ndarray) -> np.ndarray:
+    """The 4x4 pose of the TCP in the base frame (base <- tcp) at joint angles ``q``."""
+    return frame_transforms(q)[-1] @ tool_transform()
+
+
+def jacobian(q: np.ndarray) -> np.ndarray:
+    """The 6x6 geometric Jacobian of the TCP in the base frame: ``[v; w] = J @ dq``.
+
+    ``v`` is the linear velocity of the TCP point, ``w`` the angular velocity.
+    """
+    frames = frame_transforms(q)
+    tcp = (frames[-1] @ tool_transform())[:3, 3]
+    result = np.zeros((6, N_JOINTS))
+    for i in range(N_JOINTS):
+        axis = frames[i][:3, 2]
+        result[:3, i] = np.cross(axis, tcp - frames[i][:3, 3])
+        result[3:, i] = axis
+    return result
