@@ -206,3 +206,20 @@ def test_models_not_trained_on_streams_are_refused(tmp_path) -> None:
     captures = make_model(tmp_path / "captures", {"capture_normalisation": {"scale": 1.0}})
     with pytest.raises(ValueError, match="not trained on conditioned skin streams"):
         conditioning_for_model(OnnxRecognizer(captures))
+
+
+class _MetaOnly:
+    def __init__(self, arbiter: dict) -> None:
+        self.meta = type("Meta", (), {"arbiter": arbiter})()
+
+
+def test_arbiter_settings_follow_the_models_recommendation_unless_overridden() -> None:
+    from wovenskin.recognition.pipeline import arbiter_settings_for_model
+
+    recognizer = _MetaOnly({"min_probability": 0.9, "not_a_setting": 1})
+    assert arbiter_settings_for_model(recognizer).min_probability == 0.9
+    assert arbiter_settings_for_model(recognizer, min_probability=None).min_probability == 0.9
+    assert arbiter_settings_for_model(recognizer, min_probability=0.5).min_probability == 0.5
+    assert arbiter_settings_for_model(object()).min_probability == 0.0
+    with pytest.raises(ValueError, match="min_probability"):
+        arbiter_settings_for_model(_MetaOnly({"min_probability": 3.0}))

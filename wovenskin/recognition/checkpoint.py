@@ -95,6 +95,9 @@ class CheckpointMeta:
     col_pitch_mm: float | None = None
     training_data: dict[str, Any] = field(default_factory=dict)
     metrics: dict[str, Any] = field(default_factory=dict)
+    # execution settings measured to suit this model (e.g. {"min_probability": 0.9}); used
+    # by the live pipeline unless the user gives their own
+    arbiter: dict[str, Any] = field(default_factory=dict)
     torch_version: str = ""
     wovenskin_version: str = ""
     created: str = ""
@@ -185,7 +188,7 @@ class CheckpointMeta:
             for key in ("row_pitch_mm", "col_pitch_mm"):
                 if values.get(key) is not None:
                     values[key] = float(values[key])
-            for key in ("hparams", "conditioning", "training_data", "metrics"):
+            for key in ("hparams", "conditioning", "training_data", "metrics", "arbiter"):
                 if key in values and not isinstance(values[key], Mapping):
                     raise TypeError(f"{key} must be an object")
             return cls(**values)

@@ -83,6 +83,18 @@ def load_recognizer(model: str | os.PathLike | None = None, threads: int = 1) ->
     return OnnxRecognizer(resolve_model_dir(model), threads=threads)
 
 
+def arbiter_settings_for_model(recognizer: Any, **overrides: Any) -> ArbiterSettings:
+    """The execution rules for a recogniser: its checkpoint's recommended ``arbiter``
+    settings (measured for that model, e.g. ``min_probability``), then ``overrides`` that are
+    not ``None``, then the defaults.  A recommendation the arbiter does not know is ignored."""
+    meta = getattr(recognizer, "meta", None)
+    stored = dict(getattr(meta, "arbiter", None) or {})
+    known = set(ArbiterSettings.__dataclass_fields__)
+    values = {k: v for k, v in stored.items() if k in known}
+    values.update({k: v for k, v in overrides.items() if v is not None})
+    return ArbiterSettings(**values)
+
+
 def conditioning_for_model(recognizer: Any) -> ConditioningConfig | None:
     """The conditioning settings a recogniser's checkpoint was trained with.
 
