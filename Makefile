@@ -19,7 +19,7 @@ $(VENV)/.installed-dev: $(PY) pyproject.toml
 	touch $@ $(VENV)/.installed
 
 run: $(VENV)/.installed
-	$(VENV)/bin/wovenskin view --skin sim
+	$(VENV)/bin/wovenskin run
 
 test: $(VENV)/.installed-dev
 	$(VENV)/bin/ruff check wovenskin tests

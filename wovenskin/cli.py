@@ -247,11 +247,13 @@ def fake_device(
 MODEL_HELP = "Checkpoint directory with model.onnx (default: the shipped model)."
 
 
-def _pipeline_settings(every: int, dwell_ms: float, min_probability: float):
-    from wovenskin.recognition.arbiter import ArbiterSettings
-    from wovenskin.recognition.pipeline import PipelineSettings
+def _pipeline_settings(recognizer, every: int, dwell_ms: float, min_probability: float | None):
+    """Pipeline settings: the options given, else the model's recommendation, else defaults."""
+    from wovenskin.recognition.pipeline import PipelineSettings, arbiter_settings_for_model
 
-    arbiter = ArbiterSettings(dwell_s=dwell_ms / 1000, min_probability=min_probability)
+    arbiter = arbiter_settings_for_model(
+        recognizer, dwell_s=dwell_ms / 1000, min_probability=min_probability
+    )
     return PipelineSettings(every=every, arbiter=arbiter)
 
 
@@ -266,7 +268,9 @@ def replay(
     model: Path = typer.Option(None, help=MODEL_HELP),
     every: int = typer.Option(1, help="Run the model on every K-th frame's window."),
     dwell_ms: float = typer.Option(100.0, help="Dwell time before a gesture acts."),
-    min_probability: float = typer.Option(0.0, help="Least class probability that counts."),
+    min_probability: float = typer.Option(
+        None, help="Least class probability that counts (default: the model's recommendation)."
+    ),
     threads: int = typer.Option(1, help="ONNX Runtime threads for the model."),
     json_out: bool = typer.Option(False, "--json", help="Print only the command log (JSON lines)."),
 ) -> None:
@@ -274,8 +278,8 @@ def replay(
     from wovenskin.recognition.commandlog import commands_table, format_command_log
     from wovenskin.recognition.pipeline import load_recognizer, run_pipeline
 
-    settings = _pipeline_settings(every, dwell_ms, min_probability)
     recognizer = load_recognizer(model, threads=threads)
+    settings = _pipeline_settings(recognizer, every, dwell_ms, min_probability)
     result = run_pipeline(stream, recognizer, settings, on_warning=_warn)
     if json_out:
         print(format_command_log(result.commands), end="", flush=True)
@@ -296,7 +300,9 @@ def eval_stream(
     model: Path = typer.Option(None, help=MODEL_HELP),
     every: int = typer.Option(1, help="Run the model on every K-th frame's window."),
     dwell_ms: float = typer.Option(100.0, help="Dwell time before a gesture acts."),
-    min_probability: float = typer.Option(0.0, help="Least class probability that counts."),
+    min_probability: float = typer.Option(
+        None, help="Least class probability that counts (default: the model's recommendation)."
+    ),
     threads: int = typer.Option(1, help="ONNX Runtime threads for the model."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
@@ -312,8 +318,8 @@ def eval_stream(
     )
     from wovenskin.recognition.pipeline import load_recognizer, load_stream, run_pipeline
 
-    settings = _pipeline_settings(every, dwell_ms, min_probability)
     recognizer = load_recognizer(model, threads=threads)
+    settings = _pipeline_settings(recognizer, every, dwell_ms, min_probability)
     rows, details = [], []
     for path in streams:
         labelled = load_stream(path)
@@ -743,7 +749,7 @@ def compare(
     out: Path = typer.Option(Path("runs/compare"), help="Directory of checkpoints and reports."),
     models: str = typer.Option("transformer,bilstm,tcn", help="Comma-separated models."),
     split: str = typer.Option("grouped", help="grouped, random or both: grouped,random."),
-    epochs: int = typer.Option(30, help="Most epochs per model."),
+    epochs: int = typer.Option(None, help="Most epochs per model (default 4); may stop sooner."),
     batch_size: int = typer.Option(64, help="Windows per training step."),
     lr: float = typer.Option(3e-3, help="Peak learning rate."),
     seed: int = typer.Option(0, help="Training seed (the same for every model)."),
@@ -762,8 +768,14 @@ def compare(
     import json
 
     _require_torch("wovenskin compare")
-    from wovenskin.recognition.compare import TrainOptions, TrainProgressDisplay, compare_models
+    from wovenskin.recognition.compare import (
+        DEFAULT_EPOCHS,
+        TrainOptions,
+        TrainProgressDisplay,
+        compare_models,
+    )
 
+    epochs = DEFAULT_EPOCHS if epochs is None else epochs
     names = [m.strip() for m in models.split(",") if m.strip()]
     splits = [s.strip() for s in split.split(",") if s.strip()]
     parameters = _json_object(hparams, "--hparams")
@@ -814,6 +826,164 @@ def bench_model(
             repeats, batch_size, include_shipped=shipped, throughput_seconds=seconds,
             progress=lambda message: status.update(f"bench model: {message}"),
         )  # fmt: skip
+    if json_out:
+        print(json.dumps(result.to_dict()))
+    else:
+        console.print(result.table())
+
+
+# ----------------------------------------------------------------------- robot control
+
+ROBOT_HELP = "Robot: sim (the simulated TM5-900), tm:HOST[:PORT] (Techman) or ur:HOST (UR)."
+pose_app = typer.Typer(help="Named robot poses: the task's initial pose and home.")
+app.add_typer(pose_app, name="pose")
+
+
+def robot_errors(fn):
+    """Robot errors (one line) end like user errors: a red line and exit code 2."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from wovenskin.robots.base import RobotError
+
+        try:
+            return fn(*args, **kwargs)
+        except RobotError as exc:
+            raise ValueError(f"robot: {exc}") from None
+
+    return wrapper
+
+
+@app.command()
+@user_errors
+@robot_errors
+def run(
+    skin: str = typer.Option("sim", help=SKIN_HELP),
+    robot: str = typer.Option("sim", help=ROBOT_HELP),
+    model: Path = typer.Option(None, help=MODEL_HELP),
+    headless: bool = typer.Option(False, help="No view; replays run as fast as possible."),
+    trace: str = typer.Option(
+        None, help="Write a JSON line per control tick to this .jsonl file ('-': stdout)."
+    ),
+    record: Path = typer.Option(None, help="Record the session (.wsrec): skin, commands, robot."),
+    seconds: float = typer.Option(None, help="Stop after this many seconds of skin time."),
+    mapping: Path = typer.Option(None, help="Action mapping TOML (default: the packaged one)."),
+    poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
+    overwrite: bool = typer.Option(False, help="Replace existing --trace / --record files."),
+) -> None:
+    """Drive a robot with gestures: skin, recogniser, mapping, safety and robot in one loop."""
+    from wovenskin.control.session import open_session
+    from wovenskin.control.trace import TraceWriter
+
+    to_stdout = trace == "-"
+    out = err_console if to_stdout or headless else console
+    if trace == "-" and not headless:
+        raise ValueError("--trace - (stdout) needs --headless")
+    if seconds is not None and not seconds > 0:
+        raise ValueError(f"--seconds must be positive, got {seconds}")
+    writer = TraceWriter(trace, overwrite=overwrite) if trace else None
+
+    def report(message: str) -> None:
+        if headless:
+            err_console.print(escape(message), highlight=False, soft_wrap=True)
+
+    try:
+        session = open_session(
+            skin, robot, model, fast_replay=headless, mapping=mapping, poses=poses,
+            trace=writer, record=record, overwrite=overwrite, on_message=report,
+        )  # fmt: skip
+    except BaseException:
+        if writer is not None:
+            writer.close()
+        raise
+    try:
+        if headless:
+            try:
+                result = session.run(seconds)
+            except KeyboardInterrupt:
+                session.request_quit("interrupted (Ctrl-C)")
+                result = session.result()
+        else:
+            from wovenskin.ui.run_view import run_with_view
+
+            result = run_with_view(session, console, seconds, title=f"wovenskin run  {robot}")
+    finally:
+        session.close()
+    out.print(result.summary(), highlight=False, soft_wrap=True)
+    if writer is not None and writer.path is not None:
+        out.print(f"trace: {writer.lines} lines in {writer.path}", highlight=False)
+    if record is not None:
+        out.print(f"recording: {record}", highlight=False)
+
+
+@pose_app.command("set")
+@user_errors
+@robot_errors
+def pose_set(
+    name: str = typer.Argument(..., help="initial or home."),
+    robot: str = typer.Option("sim", help=ROBOT_HELP),
+    poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
+) -> None:
+    """Store the robot's current pose under NAME (initial: the task's initial pose)."""
+    from wovenskin.control.poses import PoseStore, set_pose_from_robot
+    from wovenskin.robots.registry import make_robot
+
+    store = PoseStore.load(poses)
+    backend = make_robot(robot)
+    backend.connect()
+    try:
+        pose = set_pose_from_robot(store, name, backend)
+    finally:
+        backend.disconnect()
+    console.print(f"stored {name}: {_pose_line(pose.q, pose.tcp)}", highlight=False)
+    console.print(f"in {store.path}", highlight=False)
+
+
+@pose_app.command("show")
+@user_errors
+def pose_show(
+    poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
+) -> None:
+    """Show the stored poses."""
+    from wovenskin.control.poses import PoseStore
+
+    store = PoseStore.load(poses)
+    for name in store.names:
+        pose = store.get(name)
+        console.print(f"{name}: {_pose_line(pose.q, pose.tcp)}", highlight=False)
+    if not store.names:
+        console.print(f"no stored poses in {store.path} (store one: wovenskin pose set initial)")
+
+
+def _pose_line(q, tcp) -> str:
+    import numpy as np
+
+    joints = ", ".join(f"{v:.1f}" for v in np.degrees(np.asarray(q, dtype=float)))
+    x, y, z = 1000 * np.asarray(tcp.position, dtype=float)
+    w, qx, qy, qz = tcp.quat
+    return (
+        f"joints [{joints}] deg; TCP x {x:.1f} y {y:.1f} z {z:.1f} mm, "
+        f"quat [{w:.4f}, {qx:.4f}, {qy:.4f}, {qz:.4f}]"
+    )
+
+
+@bench_app.command("control")
+@user_errors
+def bench_control(
+    model: Path = typer.Option(None, help=MODEL_HELP),
+    loop_seconds: float = typer.Option(5.0, help="Seconds of the real-time control loop."),
+    streams: int = typer.Option(2, help="Simulated streams behind the latency figures."),
+    stream_seconds: float = typer.Option(40.0, help="Length of each simulated stream."),
+    ik_steps: int = typer.Option(1000, help="Timed IK steps."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """IK step time, control-loop rate and jitter, first contact to first motion (sim)."""
+    import json
+
+    from wovenskin.bench.control import run_control_benchmark
+
+    with err_console.status("benchmarking the control loop..."):
+        result = run_control_benchmark(model, loop_seconds, streams, stream_seconds, ik_steps)
     if json_out:
         print(json.dumps(result.to_dict()))
     else:

@@ -118,9 +118,9 @@ class DifferentialIK:
         room_up = np.maximum(np.asarray(self.limits.upper) - q, 0.0)
         room_down = np.maximum(q - np.asarray(self.limits.lower), 0.0)
         # Approach a position limit no faster than it can be braked for, and never past it.
-        gain = POSITION_LIMIT_GAIN
-        up = np.minimum(np.sqrt(2.0 * self.brake_accel * room_up), gain * room_up / dt)
-        down = np.minimum(np.sqrt(2.0 * self.brake_accel * room_down), gain * room_down / dt)
+        gain = POSITION_LIMIT_GAIN / max(dt, 1e-9)  # a vanishing step must not overflow
+        up = np.minimum(np.sqrt(2.0 * self.brake_accel * room_up), gain * room_up)
+        down = np.minimum(np.sqrt(2.0 * self.brake_accel * room_down), gain * room_down)
         upper = np.minimum(speed, up)
         lower = -np.minimum(speed, down)
         position_bound = np.vstack([up < speed, down < speed])

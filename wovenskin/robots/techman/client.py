@@ -400,6 +400,18 @@ class TechmanRobot(Robot):
             self._limits = JOINT_LIMITS
         return self._limits
 
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """The TM5-900 model's 6x6 base-frame TCP Jacobian (used by the safety layer)."""
+        from wovenskin.robots.sim.tm5_900 import jacobian
+
+        return jacobian(q)
+
+    def forward_kinematics(self, q: np.ndarray) -> np.ndarray:
+        """The TM5-900 model's TCP pose (4x4, base frame) at ``q``, with the model's gripper."""
+        from wovenskin.robots.sim.tm5_900 import forward_kinematics
+
+        return forward_kinematics(q)
+
     def _fault(self) -> str | None:
         with self._cond:
             items = self._state_items

@@ -1,0 +1,133 @@
+"""Tests of the robot commands: ``wovenskin run``, ``pose set``/``pose show``.
+
+``run`` goes through the whole path with a tiny untrained checkpoint (an ONNX model
+exported like the shipped one), a replayed simulated stream and the simulated arm.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+from typer.testing import CliRunner
+
+from wovenskin.cli import app
+from wovenskin.control.trace import TRACE_KEYS, read_trace
+from wovenskin.gestures import CLASS_NAMES
+from wovenskin.recognition.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.recognition.models import build_model
+from wovenskin.recording.formats import write_labelled_stream
+from wovenskin.recording.native import read_recording
+from wovenskin.signal import ConditioningConfig
+from wovenskin.sim.stream import simulate_stream
+
+runner = CliRunner()
+
+
+def invoke(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+def one_line_error(result, message: str) -> None:
+    assert result.exit_code == 2, result.output
+    assert message in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output
+
+
+@pytest.fixture(scope="module")
+def model_dir(tmp_path_factory) -> Path:
+    """A tiny untrained TCN checkpoint with model.onnx (as in the pipeline tests)."""
+    directory = tmp_path_factory.mktemp("model")
+    torch.manual_seed(1)
+    hparams = {"dim": 16, "n_blocks": 2, "stem_channels": 8}
+    model = build_model("tcn", 10, 10, 30, len(CLASS_NAMES), **hparams)
+    meta = CheckpointMeta(
+        model_name="tcn", hparams=hparams, class_names=CLASS_NAMES, rows=10, cols=10,
+        window=30, sample_rate_hz=200.0, conditioning=ConditioningConfig().to_dict(),
+    )  # fmt: skip
+    save_checkpoint(directory, model, meta)
+    return directory
+
+
+@pytest.fixture(scope="module")
+def stream_file(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("stream") / "s.npz"
+    write_labelled_stream(path, simulate_stream(4.0, seed=2))
+    return path
+
+
+def test_headless_run_writes_the_trace_and_nothing_to_stdout(model_dir, stream_file, tmp_path):
+    trace = tmp_path / "trace.jsonl"
+    record = tmp_path / "session.wsrec"
+    result = invoke(
+        "run", "--skin", f"replay:{stream_file}", "--robot", "sim", "--model", model_dir,
+        "--headless", "--trace", trace, "--record", record, "--poses", tmp_path / "p.toml",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert result.stdout == ""
+    assert "control ticks" in result.stderr and "the skin stream ended" in result.stderr
+    records = read_trace(trace)
+    assert len(records) > 600  # 4 s at 200 Hz less the calibration
+    for r in records[:: len(records) // 10]:
+        assert tuple(r) == TRACE_KEYS
+        assert len(r["tcp"]) == 3 and len(r["quat"]) == 4 and len(r["q"]) == 6
+        assert 0.1 < sum(v * v for v in r["tcp"]) ** 0.5 < 1.5  # metres, within the arm's reach
+        assert r["gesture"] is None or r["gesture"] in CLASS_NAMES
+    assert 0.4 < records[0]["t"] < 1.0 and records[-1]["t"] <= 4.0  # the stream's own clock
+    recording = read_recording(record)
+    assert len(recording.t) == 800 and recording.annotations_of("robot")
+
+
+def test_trace_to_stdout_is_only_json_lines(model_dir, stream_file, tmp_path) -> None:
+    result = invoke(
+        "run", "--skin", f"replay:{stream_file}", "--model", model_dir, "--headless",
+        "--trace", "-", "--seconds", "2", "--poses", tmp_path / "p.toml",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    lines = result.stdout.splitlines()
+    assert len(lines) > 250
+    assert all(tuple(json.loads(line)) == TRACE_KEYS for line in lines)
+    assert "2 s elapsed" in result.stderr
+
+
+def test_run_refuses_bad_options_in_one_line(model_dir, stream_file, tmp_path) -> None:
+    skin = f"replay:{stream_file}"
+    one_line_error(
+        invoke("run", "--skin", skin, "--model", model_dir, "--headless", "--robot", "abb:x"),
+        "robot spec 'abb:x'",
+    )
+    one_line_error(
+        invoke("run", "--skin", skin, "--model", model_dir, "--trace", "-"), "needs --headless"
+    )
+    one_line_error(
+        invoke("run", "--skin", skin, "--model", tmp_path / "nowhere", "--headless"),
+        "no such model directory",
+    )
+    existing = tmp_path / "t.jsonl"
+    existing.write_text("")
+    one_line_error(
+        invoke("run", "--skin", skin, "--model", model_dir, "--headless", "--trace", existing),
+        "exists",
+    )
+    one_line_error(
+        invoke("run", "--skin", "replay:missing.npz", "--model", model_dir, "--headless"),
+        "no such file",
+    )
+
+
+def test_pose_set_and_show(tmp_path) -> None:
+    poses = tmp_path / "poses.toml"
+    result = invoke("pose", "show", "--poses", poses)
+    assert result.exit_code == 0 and "no stored poses" in result.stdout
+    result = invoke("pose", "set", "initial", "--robot", "sim", "--poses", poses)
+    assert result.exit_code == 0, result.output
+    assert result.stdout.startswith("stored initial: joints [") and "TCP x" in result.stdout
+    assert poses.is_file()
+    result = invoke("pose", "show", "--poses", poses)
+    assert result.exit_code == 0 and result.stdout.startswith("initial: joints [")
+    assert "0.0, 0.0, 90.0, 0.0, 90.0, 0.0] deg" in result.stdout  # the sim arm's ready pose
+    assert "home" not in result.stdout
+    one_line_error(invoke("pose", "set", "initial", "--robot", "tm", "--poses", poses), "robot")
+    one_line_error(invoke("pose", "set", "work", "--poses", poses), "unknown pose name")

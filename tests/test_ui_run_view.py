@@ -1,0 +1,93 @@
+"""Tests of wovenskin.ui.run_view: the screen's content, the keys, and a whole viewed run."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+from rich.console import Console
+
+from wovenskin.control.session import open_session
+from wovenskin.gestures import CLASS_NAMES
+from wovenskin.recording.formats import write_labelled_stream
+from wovenskin.sim.stream import simulate_stream
+from wovenskin.ui.run_view import handle_keys, render_run, run_with_view, terminal_keys
+
+
+class ContactMeansSwipeLeft:
+    """A stand-in recogniser: every window with contact is ``swipe_left``."""
+
+    class_names = CLASS_NAMES
+
+    class meta:  # noqa: N801 - the window length, as CheckpointMeta gives it
+        window = 30
+
+    def predict_proba(self, windows: np.ndarray) -> np.ndarray:
+        out = np.zeros((len(windows), len(CLASS_NAMES)), dtype=np.float32)
+        out[:, CLASS_NAMES.index("swipe_left")] = 1.0
+        return out
+
+
+def session_on_replay(tmp_path, **kwargs):
+    stream = simulate_stream(5.0, seed=4, gestures=["swipe_left"], invalid_fraction=0.0)
+    path = tmp_path / "s.npz"
+    write_labelled_stream(path, stream)
+    return open_session(
+        f"replay:{path}", "sim", recognizer=ContactMeansSwipeLeft(), fast_replay=True,
+        poses=tmp_path / "poses.toml", **kwargs,
+    )  # fmt: skip
+
+
+def screen_text(renderable) -> str:
+    console = Console(record=True, width=160, file=io.StringIO(), color_system=None)
+    console.print(renderable)
+    return console.export_text()
+
+
+def test_the_screen_shows_command_robot_and_stops(tmp_path) -> None:
+    session = session_on_replay(tmp_path)
+    session.start()
+    while session.state.gesture is None and not session.state.ended:
+        session.step()
+    text = screen_text(render_run(session))
+    assert "command" in text and "swipe_left" in text
+    assert "TCP" in text and " mm" in text and "joints" in text and "stops" in text
+    x_mm = 1000 * session.state.robot.tcp.position[0]
+    assert f"x {x_mm:7.1f}" in text  # the TCP in millimetres
+    assert "space: stop" in text
+    session.emergency_stop("stop key pressed")
+    text = screen_text(render_run(session))
+    assert "STOPPED" in text and "stop key pressed" in text
+    session.close()
+
+
+def test_keys_stop_resume_and_quit(tmp_path) -> None:
+    session = session_on_replay(tmp_path)
+    session.start()
+    handle_keys(session, " ")
+    assert session.safety.stopped and session.state.stops[-1].reason == "stop key pressed"
+    handle_keys(session, " ")
+    assert not session.safety.stopped
+    handle_keys(session, "xq")  # unknown keys are ignored
+    assert session.run().ended == "quit with the q key"
+    session.close()
+
+
+def test_no_terminal_no_keys() -> None:
+    with terminal_keys(io.StringIO()) as read:
+        assert read() == ""
+
+
+def test_a_viewed_run_to_the_end_and_one_quit_by_key(tmp_path) -> None:
+    console = Console(record=True, width=160, file=io.StringIO(), color_system=None)
+    session = session_on_replay(tmp_path)
+    result = run_with_view(session, console, fps=1000.0, read_keys=lambda: "")
+    session.close()
+    assert result.ended == "the skin stream ended" and result.ticks > 500
+    assert "swipe_left" in console.export_text()
+
+    presses = iter(["", "", "q"])
+    session = session_on_replay(tmp_path)
+    result = run_with_view(session, console, read_keys=lambda: next(presses, ""))
+    session.close()
+    assert result.ended == "quit with the q key"

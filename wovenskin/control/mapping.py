@@ -1,0 +1,228 @@
+"""The action mapping: which gesture drives which twist or named pose, and how fast.
+
+A TOML file (the packaged ``default_mapping.toml`` is GESTURES.md's table) holds a
+``[motion]`` table (frame, speeds, acceleration and jerk limits; angles in degrees), a
+``[poses]`` table (``hold_to_run``) and a ``[gestures]`` table mapping each gesture name to
+``"translate <axis>"``, ``"rotate <axis>"``, ``"pose initial|home"`` or ``"none"``.
+:meth:`ActionMapping.load` validates it and reports the first problem as one line naming
+the file and the key; :meth:`ActionMapping.target_twist` turns a gesture into the
+base-frame twist the robot should move with at full speed.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from wovenskin.gestures import CLASS_NAMES, INVALID
+from wovenskin.robots.base import Pose
+
+DEFAULT_MAPPING_FILE = "default_mapping.toml"
+POSE_NAMES = ("initial", "home")
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass(frozen=True)
+class MotionSettings:
+    """Speeds and smoothing of velocity commands (SI units: m, rad, s)."""
+
+    frame: Literal["tool", "base"] = "tool"
+    linear_speed: float = 0.05  # m/s
+    angular_speed: float = math.radians(15.0)  # rad/s
+    linear_accel: float = 0.25  # m/s^2
+    angular_accel: float = math.radians(90.0)  # rad/s^2
+    linear_jerk: float = 2.5  # m/s^3
+    angular_jerk: float = math.radians(900.0)  # rad/s^3
+
+    def __post_init__(self) -> None:
+        if self.frame not in ("tool", "base"):
+            raise ValueError(f"frame must be 'tool' or 'base', got {self.frame!r}")
+        for name in (
+            "linear_speed",
+            "angular_speed",
+            "linear_accel",
+            "angular_accel",
+            "linear_jerk",
+            "angular_jerk",
+        ):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"{name} must be a number, got {value!r}")
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+@dataclass(frozen=True)
+class TwistAction:
+    """Move along (``translate``) or about (``rotate``) a unit axis while the command lasts."""
+
+    kind: Literal["translate", "rotate"]
+    axis: np.ndarray  # (3,) unit vector in the mapping's frame
+
+    def __str__(self) -> str:
+        index = int(np.flatnonzero(self.axis)[0])
+        sign = "+" if self.axis[index] > 0 else "-"
+        return f"{self.kind} {sign}{'xyz'[index]}"
+
+
+@dataclass(frozen=True)
+class PoseAction:
+    """Go to a stored named pose; hold-to-run stops the move when the command ends."""
+
+    name: Literal["initial", "home"]
+    hold_to_run: bool = True
+
+    def __str__(self) -> str:
+        return f"pose {self.name}"
+
+
+Action = TwistAction | PoseAction
+
+
+@dataclass(frozen=True)
+class ActionMapping:
+    """Gesture name -> action, plus the motion settings; build it with :meth:`load`."""
+
+    actions: dict[str, Action] = field(default_factory=dict)
+    settings: MotionSettings = field(default_factory=MotionSettings)
+    source: str = "<built-in>"
+
+    @classmethod
+    def load(cls, path: str | Path | None = None) -> ActionMapping:
+        """Read and validate a mapping file (default: the packaged default mapping)."""
+        if path is None:
+            ref = resources.files("wovenskin.control").joinpath(DEFAULT_MAPPING_FILE)
+            return cls.from_text(ref.read_text(encoding="utf-8"), f"<package>/{ref.name}")
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ValueError(f"{path}: cannot read the mapping file ({exc.strerror})") from None
+        return cls.from_text(text, str(path))
+
+    @classmethod
+    def from_text(cls, text: str, source: str = "<string>") -> ActionMapping:
+        """Parse mapping TOML; ``source`` names the file in error messages."""
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"{source}: not valid TOML ({exc})") from None
+        _check_keys(data, {"motion", "poses", "gestures"}, "", source)
+        motion = _table(data, "motion", source)
+        poses = _table(data, "poses", source)
+        gestures = _table(data, "gestures", source)
+        settings = _motion_settings(motion, source)
+        _check_keys(poses, {"hold_to_run"}, "poses.", source)
+        hold_to_run = poses.get("hold_to_run", True)
+        if not isinstance(hold_to_run, bool):
+            raise ValueError(f"{source}: poses.hold_to_run must be true or false")
+        actions: dict[str, Action] = {}
+        for gesture, spec in gestures.items():
+            key = f"gestures.{gesture}"
+            if gesture not in CLASS_NAMES:
+                raise ValueError(f"{source}: {key}: unknown gesture {gesture!r}")
+            action = _parse_action(spec, hold_to_run, key, source)
+            if action is not None and gesture == INVALID:
+                raise ValueError(f"{source}: {key}: 'invalid' never starts an action; use 'none'")
+            if action is not None:
+                actions[gesture] = action
+        return cls(actions, settings, source)
+
+    def action_for(self, gesture: str | None) -> Action | None:
+        """The action of ``gesture`` (``None`` for no command, ``invalid`` or unmapped)."""
+        if gesture is None:
+            return None
+        return self.actions.get(gesture)
+
+    def target_twist(self, gesture: str | None, tcp: Pose) -> np.ndarray:
+        """Base-frame twist ``[vx, vy, vz, wx, wy, wz]`` of ``gesture`` at full speed.
+
+        Tool-frame axes are turned into the base frame with the TCP's orientation. Pose
+        actions and no action give a zero twist.
+        """
+        twist = np.zeros(6)
+        action = self.action_for(gesture)
+        if not isinstance(action, TwistAction):
+            return twist
+        axis = action.axis
+        if self.settings.frame == "tool":
+            axis = tcp.rotation() @ axis
+        if action.kind == "translate":
+            twist[:3] = axis * self.settings.linear_speed
+        else:
+            twist[3:] = axis * self.settings.angular_speed
+        return twist
+
+
+# -- parsing helpers -------------------------------------------------------------------
+
+_LINEAR_KEYS = ("linear_speed", "linear_accel", "linear_jerk")
+_ANGULAR_KEYS = ("angular_speed", "angular_accel", "angular_jerk")  # degrees in the file
+
+
+def _table(data: dict[str, Any], key: str, source: str) -> dict[str, Any]:
+    value = data.get(key, {})
+    if not isinstance(value, dict):
+        raise ValueError(f"{source}: {key} must be a table")
+    return value
+
+
+def _check_keys(table: dict[str, Any], allowed: set[str], prefix: str, source: str) -> None:
+    for key in table:
+        if key not in allowed:
+            expected = ", ".join(sorted(allowed))
+            raise ValueError(f"{source}: {prefix}{key}: unknown key (expected one of {expected})")
+
+
+def _motion_settings(motion: dict[str, Any], source: str) -> MotionSettings:
+    _check_keys(motion, {"frame", *_LINEAR_KEYS, *_ANGULAR_KEYS}, "motion.", source)
+    values: dict[str, Any] = {}
+    frame = motion.get("frame", "tool")
+    if frame not in ("tool", "base"):
+        raise ValueError(f"{source}: motion.frame must be 'tool' or 'base', got {frame!r}")
+    values["frame"] = frame
+    for key in (*_LINEAR_KEYS, *_ANGULAR_KEYS):
+        if key not in motion:
+            continue
+        value = motion[key]
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not (number and math.isfinite(value) and value > 0.0):
+            raise ValueError(f"{source}: motion.{key} must be a positive number, got {value!r}")
+        values[key] = math.radians(value) if key in _ANGULAR_KEYS else float(value)
+    return MotionSettings(**values)
+
+
+def _parse_action(spec: Any, hold_to_run: bool, key: str, source: str) -> Action | None:
+    if not isinstance(spec, str):
+        raise ValueError(f"{source}: {key} must be a string such as 'translate +z'")
+    words = spec.split()
+    if words == ["none"]:
+        return None
+    if len(words) == 2 and words[0] in ("translate", "rotate"):
+        return TwistAction(words[0], _parse_axis(words[1], key, source))  # type: ignore[arg-type]
+    if len(words) == 2 and words[0] == "pose":
+        if words[1] not in POSE_NAMES:
+            raise ValueError(
+                f"{source}: {key}: unknown pose {words[1]!r} (expected initial or home)"
+            )
+        return PoseAction(words[1], hold_to_run)  # type: ignore[arg-type]
+    raise ValueError(
+        f"{source}: {key}: cannot read {spec!r} "
+        "(expected 'translate <axis>', 'rotate <axis>', 'pose initial|home' or 'none')"
+    )
+
+
+def _parse_axis(text: str, key: str, source: str) -> np.ndarray:
+    sign = -1.0 if text.startswith("-") else 1.0
+    name = text[1:] if text[:1] in "+-" and len(text) > 1 else text
+    if name not in AXES:
+        raise ValueError(f"{source}: {key}: bad axis {text!r} (expected +x, -x, +y, -y, +z or -z)")
+    axis = np.zeros(3)
+    axis[AXES[name]] = sign
+    return axis

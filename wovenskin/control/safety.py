@@ -1,0 +1,539 @@
+"""The safety layer: every command to every robot backend passes through :class:`SafetyLayer`.
+
+It wraps a backend and is itself a :class:`~wovenskin.robots.base.Robot`. Each twist is
+checked before it is forwarded:
+
+- a non-finite or wrongly shaped twist stops the arm (a latched stop) and raises
+  ``ValueError``; it is never forwarded;
+- the linear and angular parts are scaled down (direction kept) to the speed caps
+  (250 mm/s: the reduced speed for manual guidance in ISO 10218-1);
+- each linear component that would carry the TCP out of the workspace box within the
+  prediction horizon is reduced so the TCP stops at the wall; outside the box only motion
+  back inside is allowed;
+- if a joint is (or would within the horizon be) within the margin of its limit and the
+  command drives it further, the command is not forwarded and the arm stops. The joint
+  motion is predicted from the Jacobian where one is known (``robot.jacobian(q)``, or the
+  TM5-900 model for the simulated arm), else the reported joint velocities are used.
+
+Point-to-point moves are refused (``RobotError``) when the target lies outside the box or
+the joint limits less the margin, and run no faster than the caps allow. Watchdogs stop the
+arm when the skin stream or the command stream is silent for longer than ``watchdog_s``;
+:meth:`SafetyLayer.emergency_stop` (the stop key) latches like them until
+:meth:`SafetyLayer.clear_stop`. Every safety stop is a :class:`StopEvent` with a one-line
+reason, also logged through :mod:`logging`; the caller's own :meth:`SafetyLayer.stop` is a
+plain stop and records nothing.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from wovenskin.robots.base import N_JOINTS, JointLimits, Pose, Robot, RobotError, RobotState
+
+log = logging.getLogger(__name__)
+
+Jacobian = Callable[[np.ndarray], np.ndarray]
+Kinematics = Callable[[np.ndarray], np.ndarray]  # q -> 4x4 base <- tcp
+
+
+def _vector(values: object, size: int) -> np.ndarray:
+    return np.asarray(values, dtype=float).reshape(size).copy()
+
+
+@dataclass(frozen=True)
+class SafetyLimits:
+    """What the safety layer enforces (SI units, base frame)."""
+
+    max_linear_speed: float = 0.25  # m/s, TCP
+    max_angular_speed: float = math.radians(60.0)  # rad/s
+    workspace_lower: np.ndarray = field(default_factory=lambda: np.array([-0.8, -0.8, 0.05]))
+    workspace_upper: np.ndarray = field(default_factory=lambda: np.array([0.8, 0.8, 1.2]))
+    joint_margin: float = math.radians(5.0)  # rad, kept clear of every joint limit
+    watchdog_s: float = 0.1  # longest silence of the skin or command stream
+    box_horizon_s: float = 0.1  # the TCP must stay in the box this far ahead
+    joint_horizon_s: float = 0.02  # joints are checked this far ahead
+    arm_reach: float = 1.2  # m, bounds any joint axis's distance to the TCP (no Jacobian)
+
+    def __post_init__(self) -> None:
+        lower = _vector(self.workspace_lower, 3)
+        upper = _vector(self.workspace_upper, 3)
+        if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
+            raise ValueError("workspace box bounds must be finite")
+        if not np.all(lower < upper):
+            raise ValueError("workspace box: every lower bound must be below its upper bound")
+        object.__setattr__(self, "workspace_lower", lower)
+        object.__setattr__(self, "workspace_upper", upper)
+        for name in ("max_linear_speed", "max_angular_speed", "watchdog_s", "box_horizon_s",
+                     "joint_horizon_s", "arm_reach"):  # fmt: skip
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be a positive number, got {value!r}")
+        if not (math.isfinite(self.joint_margin) and self.joint_margin >= 0.0):
+            raise ValueError(f"joint_margin must be >= 0, got {self.joint_margin!r}")
+
+    def in_box(self, position: np.ndarray, tolerance: float = 0.0) -> bool:
+        """Whether ``position`` lies in the workspace box (grown by ``tolerance``)."""
+        p = np.asarray(position, dtype=float)
+        lower, upper = self.workspace_lower - tolerance, self.workspace_upper + tolerance
+        return bool(np.all(p >= lower) and np.all(p <= upper))
+
+
+@dataclass(frozen=True)
+class StopEvent:
+    """One safety stop: when (the layer's clock), why (one line) and which check fired.
+
+    ``source`` is one of ``"command"`` (a bad twist), ``"skin watchdog"``,
+    ``"command watchdog"`` and ``"emergency"`` -- these latch until
+    :meth:`SafetyLayer.clear_stop` -- or ``"joint limit"``, ``"workspace"`` and ``"speed"``,
+    which stop or refuse one command and leave the arm free to move away.
+    """
+
+    t: float
+    reason: str
+    source: str
+
+
+class SafetyLayer(Robot):
+    """A :class:`Robot` that checks every command before the wrapped backend sees it."""
+
+    def __init__(
+        self,
+        robot: Robot,
+        limits: SafetyLimits | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        jacobian: Jacobian | None = None,
+        forward_kinematics: Kinematics | None = None,
+    ) -> None:
+        self.robot = robot
+        self.limits = limits or SafetyLimits()
+        self.name = robot.name
+        self._clock = clock
+        self._jacobian = jacobian if jacobian is not None else default_jacobian(robot)
+        self._fk = forward_kinematics if forward_kinematics is not None else default_fk(robot)
+        self._joint_limits: JointLimits | None = None
+        self._stops: list[StopEvent] = []
+        self._latched: StopEvent | None = None
+        self._last_skin: float | None = None
+        self._last_command: float | None = None
+        self._skin_fired = False
+        self._command_fired = False
+        self._sent = np.zeros(6)  # the twist the backend is moving with
+        self._refusing: str | None = None  # the reason of a refusal still in force
+        self._in_move = False  # a point-to-point move of ours may be running
+        self._blocked: tuple[np.ndarray, str] | None = None  # refused direction, no Jacobian
+
+    # -- state of the layer
+
+    @property
+    def stops(self) -> list[StopEvent]:
+        """Every safety stop so far, oldest first."""
+        return list(self._stops)
+
+    @property
+    def stopped(self) -> bool:
+        """Whether a latched stop holds the arm (cleared by :meth:`clear_stop`)."""
+        return self._latched is not None
+
+    @property
+    def last_twist(self) -> np.ndarray:
+        """The twist last forwarded to the backend (zero after a stop)."""
+        return self._sent.copy()
+
+    # -- Robot interface
+
+    def connect(self) -> None:
+        self.robot.connect()
+
+    def disconnect(self) -> None:
+        self._sent = np.zeros(6)
+        self.robot.disconnect()
+
+    def state(self) -> RobotState:
+        return self.robot.state()
+
+    def joint_limits(self) -> JointLimits:
+        if self._joint_limits is None:
+            self._joint_limits = self.robot.joint_limits()
+        return self._joint_limits
+
+    def send_twist(self, twist: np.ndarray) -> None:
+        now = self._now()
+        command = self._checked_twist(twist, now)
+        self._last_command = now
+        self._command_fired = False
+        if self._latched is not None:
+            if np.any(command):
+                raise RobotError(f"robot is stopped ({self._latched.reason}); clear the stop first")
+            return
+        self._forward(command, self.limits.box_horizon_s, self.limits.joint_horizon_s, now)
+
+    def move_to_joints(self, q: np.ndarray, speed_fraction: float = 0.2) -> None:
+        self._require_running()
+        goal = _finite_vector(q, N_JOINTS, "joint target")
+        fraction = _fraction(speed_fraction)
+        limits = self.joint_limits()
+        margin = self.limits.joint_margin
+        outside = (goal < limits.lower + margin) | (goal > limits.upper - margin)
+        if np.any(outside):
+            joint = int(np.flatnonzero(outside)[0]) + 1
+            self._refuse(
+                f"joint target refused: joint {joint} at {math.degrees(goal[joint - 1]):.1f} deg "
+                f"is within {math.degrees(margin):.1f} deg of its limit or beyond",
+                "joint limit",
+            )
+        start = np.asarray(self.robot.state().q, dtype=float)
+        leaves = self._path_leaves_box(start, goal)
+        if leaves is not None:
+            where = ", ".join(f"{v:.3f}" for v in leaves)
+            self._refuse(
+                f"joint target refused: the TCP would pass [{where}] m, outside the workspace box",
+                "workspace",
+            )
+        self._sent = np.zeros(6)
+        self._in_move = False
+        self.robot.move_to_joints(goal, self._capped_fraction(start, goal, fraction, limits))
+        self._in_move = True
+
+    def move_to_pose(self, pose: Pose, speed: float = 0.05) -> None:
+        self._require_running()
+        if not isinstance(pose, Pose):
+            raise ValueError(f"pose must be a Pose, got {type(pose).__name__}")
+        ok = isinstance(speed, int | float) and not isinstance(speed, bool)
+        if not (ok and math.isfinite(speed) and speed > 0.0):
+            raise ValueError(f"speed must be a positive number of m/s, got {speed!r}")
+        if not self.limits.in_box(pose.position):
+            where = ", ".join(f"{v:.3f}" for v in pose.position)
+            self._refuse(f"pose target [{where}] m is outside the workspace box", "workspace")
+        self._sent = np.zeros(6)
+        self._in_move = False
+        self.robot.move_to_pose(pose, min(float(speed), self.limits.max_linear_speed))
+        self._in_move = True
+
+    def stop(self) -> None:
+        self._sent = np.zeros(6)
+        self._in_move = False
+        self.robot.stop()
+
+    def step(self, dt: float) -> None:
+        """Advance a simulated backend, first re-checking the running twist over ``dt``."""
+        if not (math.isfinite(dt) and dt >= 0.0):
+            raise ValueError(f"dt must be a finite non-negative number of seconds, got {dt}")
+        if self._latched is None and np.any(self._sent):
+            box = max(dt, self.limits.box_horizon_s)
+            joints = max(dt, self.limits.joint_horizon_s)
+            self._forward(self._sent, box, joints, self._now(), only_if_changed=True)
+        elif self._latched is None and self._in_move:
+            self._watch_move(max(dt, self.limits.box_horizon_s), self._now())
+        self.robot.step(dt)
+
+    # -- watchdogs and stops
+
+    def heartbeat_skin(self, t: float | None = None) -> None:
+        """The skin stream delivered a frame at ``t`` (default: now)."""
+        self._last_skin = self._time(t)
+        self._skin_fired = False
+
+    def heartbeat_command(self, t: float | None = None) -> None:
+        """The control loop is alive at ``t`` (default: now), whether or not it moves."""
+        self._last_command = self._time(t)
+        self._command_fired = False
+
+    def check(self, now: float | None = None) -> list[StopEvent]:
+        """Run the watchdogs at ``now`` (default: the clock); returns the stops they made."""
+        now = self._time(now)
+        fired: list[StopEvent] = []
+        if self._latched is not None:
+            return fired  # already held: nothing more to stop
+        if self._in_move:
+            self._watch_move(self.limits.box_horizon_s, now)
+        limit = self.limits.watchdog_s
+        if not self._skin_fired and _silent(self._last_skin, now, limit):
+            self._skin_fired = True
+            silence = now - (self._last_skin or now)
+            reason = f"skin stream stalled: no frame for {1000 * silence:.0f} ms"
+            fired.append(self._stop_now(now, reason, "skin watchdog"))
+        elif not self._command_fired and _silent(self._last_command, now, limit):
+            self._command_fired = True
+            silence = now - (self._last_command or now)
+            reason = f"command stream silent for {1000 * silence:.0f} ms"
+            fired.append(self._stop_now(now, reason, "command watchdog"))
+        return fired
+
+    def emergency_stop(self, reason: str = "emergency stop") -> None:
+        """Stop now and hold until :meth:`clear_stop` (the stop key)."""
+        self._stop_now(self._now(), " ".join(str(reason).split()), "emergency")
+
+    def clear_stop(self) -> None:
+        """Release a latched stop; the armed watchdogs start counting again from now."""
+        if self._latched is not None:
+            log.info("safety stop cleared (was: %s)", self._latched.reason)
+        now = self._now()
+        if self._last_skin is not None:
+            self._last_skin = max(self._last_skin, now)
+        if self._last_command is not None:
+            self._last_command = max(self._last_command, now)
+        self._latched = None
+        self._refusing = None
+        self._blocked = None
+        self._skin_fired = False
+        self._command_fired = False
+
+    # -- internals
+
+    def _now(self) -> float:
+        return float(self._clock())
+
+    def _time(self, t: float | None) -> float:
+        value = self._now() if t is None else float(t)
+        if not math.isfinite(value):
+            raise ValueError(f"time must be finite, got {t!r}")
+        return value
+
+    def _require_running(self) -> None:
+        if self._latched is not None:
+            raise RobotError(f"robot is stopped ({self._latched.reason}); clear the stop first")
+
+    def _record(self, now: float, reason: str, source: str) -> StopEvent:
+        event = StopEvent(now, reason, source)
+        self._stops.append(event)
+        log.warning("robot stop (%s) at %.3f s: %s", source, now, reason)
+        return event
+
+    def _stop_now(self, now: float, reason: str, source: str) -> StopEvent:
+        """A latched stop: record it, hold the arm, stop the backend."""
+        event = self._record(now, reason, source)
+        self._latched = event
+        self._sent = np.zeros(6)
+        self._in_move = False
+        self.robot.stop()
+        return event
+
+    def _refuse(self, reason: str, source: str) -> None:
+        """Refuse a point-to-point move: stop what runs, record and raise (not latched)."""
+        self._record(self._now(), reason, source)
+        self._sent = np.zeros(6)
+        self._in_move = False
+        self.robot.stop()
+        raise RobotError(reason)
+
+    def _checked_twist(self, twist: object, now: float) -> np.ndarray:
+        try:
+            command = np.array(twist, dtype=float)
+        except (TypeError, ValueError):
+            problem = "twist is not numeric"
+        else:
+            if command.shape != (6,):
+                problem = f"twist must have shape (6,), got {command.shape}"
+            elif not np.all(np.isfinite(command)):
+                problem = "twist has non-finite values"
+            else:
+                return command
+        self._stop_now(now, f"bad command refused: {problem}", "command")
+        raise ValueError(problem)
+
+    def _forward(
+        self,
+        command: np.ndarray,
+        box_horizon: float,
+        joint_horizon: float,
+        now: float,
+        only_if_changed: bool = False,
+    ) -> None:
+        """Limit ``command`` against the arm's state and send it (or stop the arm)."""
+        if not np.any(command):
+            self._refusing = None
+            if np.any(self._sent) or self._in_move:  # else at rest or stopping: leave it be
+                self._sent = np.zeros(6)
+                self._in_move = False
+                self.robot.send_twist(np.zeros(6))
+            return
+        state = self.robot.state()
+        safe = cap_speeds(command, self.limits.max_linear_speed, self.limits.max_angular_speed)
+        safe[:3] = keep_in_box(safe[:3], state.tcp.position, self.limits, box_horizon)
+        refusal = self._joint_refusal(safe, state, joint_horizon)
+        if refusal is not None:
+            if refusal != self._refusing:
+                self._record(now, refusal, "joint limit")
+            self._refusing = refusal
+            self._sent = np.zeros(6)
+            self.robot.stop()
+            return
+        self._refusing = None
+        if only_if_changed and np.array_equal(safe, self._sent):
+            return
+        self._in_move = False
+        self._sent = safe
+        self.robot.send_twist(safe.copy())
+
+    def _joint_refusal(self, twist: np.ndarray, state: RobotState, horizon: float) -> str | None:
+        """Why ``twist`` may not run because of a joint margin, or ``None`` when it may."""
+        if not np.any(twist):
+            return None
+        limits = self.joint_limits()
+        margin = self.limits.joint_margin
+        q = np.asarray(state.q, dtype=float)
+        reach = margin + limits.max_speed * horizon  # where a refusal can come from
+        near = (q > limits.upper - reach) | (q < limits.lower + reach)
+        if self._jacobian is not None:
+            dq = np.linalg.lstsq(np.asarray(self._jacobian(q), dtype=float), twist, rcond=1e-6)[0]
+            dq = np.clip(dq, -limits.max_speed, limits.max_speed)
+        else:
+            dq = np.asarray(state.dq, dtype=float)
+            if self._blocked is not None and not np.any(near):
+                self._blocked = None
+            if self._blocked is not None and float(twist @ self._blocked[0]) > 0.0:
+                return self._blocked[1]  # no model: anything like the refused twist stays refused
+        ahead = q + dq * horizon
+        toward = ((dq > 0) & (ahead > limits.upper - margin)) | (
+            (dq < 0) & (ahead < limits.lower + margin)
+        )
+        if not np.any(toward):
+            return None
+        joint = int(np.flatnonzero(toward)[0])
+        reason = (
+            f"joint {joint + 1} would come within {math.degrees(margin):.1f} deg of its limit: "
+            "command stopped"
+        )
+        if self._jacobian is None:
+            self._blocked = (twist / float(np.linalg.norm(twist)), reason)
+        return reason
+
+    def _watch_move(self, horizon: float, now: float) -> None:
+        """Stop a point-to-point move about to leave the box or a joint range, or too fast."""
+        state = self.robot.state()
+        if not state.moving:
+            self._in_move = False
+            return
+        problem = None
+        velocity = np.asarray(state.tcp_twist, dtype=float)
+        position = np.asarray(state.tcp.position, dtype=float)
+        ahead = keep_in_box(velocity[:3], position, self.limits, horizon)
+        if not np.allclose(ahead, velocity[:3], rtol=0.0, atol=1e-9):
+            problem = ("the move would carry the TCP out of the workspace box", "workspace")
+        elif state.tcp_speed > self.limits.max_linear_speed * MOVE_SPEED_TOLERANCE:
+            problem = (f"the move ran at {1000 * state.tcp_speed:.0f} mm/s", "speed")
+        else:
+            limits = self.joint_limits()
+            q, dq = np.asarray(state.q, dtype=float), np.asarray(state.dq, dtype=float)
+            after = q + dq * horizon
+            if np.any(((dq > 0) & (after > limits.upper)) | ((dq < 0) & (after < limits.lower))):
+                problem = ("the move would drive a joint past its limit", "joint limit")
+        if problem is not None:
+            self._record(now, *problem)
+            self._in_move = False
+            self.robot.stop()
+
+    def _path_leaves_box(self, start: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
+        """The first TCP position outside the box along the straight joint path, if any."""
+        if self._fk is None:
+            return None
+        for s in np.linspace(0.0, 1.0, PATH_SAMPLES):
+            position = np.asarray(self._fk(start + s * (goal - start)), dtype=float)[:3, 3]
+            if s > 0.0 and not self.limits.in_box(position):
+                return position
+        return None
+
+    def _capped_fraction(
+        self, start: np.ndarray, goal: np.ndarray, fraction: float, limits: JointLimits
+    ) -> float:
+        """Slow a joint move so its TCP speeds stay under the caps.
+
+        The backend is assumed to move the joints in step along the straight joint path, the
+        busiest joint at ``fraction`` of its speed limit. With a Jacobian the TCP speeds are
+        sampled along the path; without one they are bounded by ``arm_reach`` times the sum
+        of the joint speeds (and the sum itself for the angular speed).
+        """
+        delta = goal - np.asarray(start, dtype=float)
+        moving = np.abs(delta) > 1e-12
+        if not np.any(moving):
+            return fraction
+        path_rate = fraction * float(np.min(limits.max_speed[moving] / np.abs(delta[moving])))
+        if self._jacobian is None:
+            angular = float(np.sum(np.abs(delta))) * path_rate
+            linear = self.limits.arm_reach * angular
+        else:
+            linear = angular = 0.0
+            for s in np.linspace(0.0, 1.0, PATH_SAMPLES):
+                jac = np.asarray(self._jacobian(start + s * delta), dtype=float)
+                linear = max(linear, float(np.linalg.norm(jac[:3] @ delta)) * path_rate)
+                angular = max(angular, float(np.linalg.norm(jac[3:] @ delta)) * path_rate)
+        ratio = max(linear / self.limits.max_linear_speed, angular / self.limits.max_angular_speed)
+        if ratio <= CAP_SAFETY_FACTOR:
+            return fraction
+        return fraction * CAP_SAFETY_FACTOR / ratio
+
+
+CAP_SAFETY_FACTOR = 0.9  # joint moves plan for 90 % of the caps (the path is sampled)
+PATH_SAMPLES = 21  # points checked along a joint move
+MOVE_SPEED_TOLERANCE = 1.02  # a running move is stopped above 102 % of the speed cap
+
+
+def cap_speeds(twist: np.ndarray, max_linear: float, max_angular: float) -> np.ndarray:
+    """``twist`` with each part scaled down (direction kept) to its cap; huge values are safe."""
+    out = np.asarray(twist, dtype=float).copy()
+    for part, cap in ((slice(0, 3), max_linear), (slice(3, 6), max_angular)):
+        vector = out[part]
+        largest = float(np.max(np.abs(vector)))
+        if largest == 0.0:
+            continue
+        unit = vector / largest  # no overflow in the norm below
+        norm = float(np.linalg.norm(unit))
+        if norm * largest > cap:
+            out[part] = unit * (cap / norm)
+    return out
+
+
+def keep_in_box(
+    velocity: np.ndarray, position: np.ndarray, limits: SafetyLimits, horizon: float
+) -> np.ndarray:
+    """Reduce each component of ``velocity`` so ``position + velocity * horizon`` stays in
+    the workspace box; outside the box only motion back toward it is left."""
+    p = np.asarray(position, dtype=float)
+    room_up = np.maximum((limits.workspace_upper - p) / horizon, 0.0)
+    room_down = np.minimum((limits.workspace_lower - p) / horizon, 0.0)
+    return np.clip(np.asarray(velocity, dtype=float), room_down, room_up)
+
+
+def default_jacobian(robot: Robot) -> Jacobian | None:
+    """The backend's ``jacobian(q)`` (base frame, 6x6) if it has one, else ``None``."""
+    method = getattr(robot, "jacobian", None)
+    if callable(method):
+        return method
+    return None
+
+
+def default_fk(robot: Robot) -> Kinematics | None:
+    """The backend's ``forward_kinematics(q)`` (4x4, base <- tcp) if it has one, else ``None``."""
+    method = getattr(robot, "forward_kinematics", None)
+    if callable(method):
+        return method
+    return None
+
+
+def _silent(last: float | None, now: float, limit: float) -> bool:
+    return last is not None and now - last > limit
+
+
+def _finite_vector(values: object, size: int, what: str) -> np.ndarray:
+    try:
+        vector = np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} is not numeric") from None
+    if vector.shape != (size,):
+        raise ValueError(f"{what} must have shape ({size},), got {vector.shape}")
+    if not np.all(np.isfinite(vector)):
+        raise ValueError(f"{what} has non-finite values")
+    return vector
+
+
+def _fraction(speed_fraction: object) -> float:
+    ok = isinstance(speed_fraction, int | float) and not isinstance(speed_fraction, bool)
+    if not (ok and math.isfinite(speed_fraction) and 0.0 < speed_fraction <= 1.0):  # type: ignore[arg-type]
+        raise ValueError(f"speed_fraction must be in (0, 1], got {speed_fraction!r}")
+    return float(speed_fraction)  # type: ignore[arg-type]

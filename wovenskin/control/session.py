@@ -1,0 +1,655 @@
+"""A robot control session: skin -> recogniser -> active command -> safe robot motion.
+
+:class:`ControlSession` owns the control loop.  Each :class:`~wovenskin.live.LiveSkin`
+block goes through the recognition :class:`~wovenskin.recognition.pipeline.LivePipeline`
+once; then the loop ticks once per frame of the block, at the frame's time on the skin
+clock (200 Hz for the default skin): the command active at that time is mapped
+(:class:`~wovenskin.control.mapping.ActionMapping`) to a target twist, shaped by
+:class:`~wovenskin.control.motion.TwistShaper` and sent through
+:class:`~wovenskin.control.safety.SafetyLayer`, and a simulated robot is advanced by the
+tick's ``dt`` -- so a replay runs faster than real time and gives the same motion every
+time.  Pose actions start a joint move to the stored pose (:class:`PoseStore`) and, when
+hold-to-run, stop as soon as the command ends.
+
+Safety: every skin frame is a skin heartbeat and every tick a command heartbeat; the
+layer's watchdogs run on the session clock, which is the skin clock while frames arrive
+and advances with the wall clock while they do not, so a gap in a replayed stream and a
+stalled live skin both stop the robot.  :meth:`ControlSession.emergency_stop` (the stop
+key) latches until :meth:`ControlSession.resume`; watchdog stops clear by themselves once
+the skin streams again and no command is active.  Bad skin blocks and robot errors are
+reported as one line and never move the robot.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from wovenskin.control.mapping import ActionMapping, PoseAction, TwistAction
+from wovenskin.control.motion import TwistShaper
+from wovenskin.control.poses import PoseStore
+from wovenskin.control.safety import SafetyLayer, SafetyLimits, StopEvent
+from wovenskin.control.trace import TraceWriter
+from wovenskin.robots.base import Robot, RobotError, RobotState
+
+
+@dataclass(frozen=True)
+class SessionSettings:
+    """How the loop turns commands into motion."""
+
+    pose_speed_fraction: float = 0.2  # joint moves to stored poses, fraction of joint limits
+    max_shaper_dt_s: float = 0.05  # longest step the twist shaper integrates at once
+    error_repeat_s: float = 1.0  # the same error line is reported at most this often
+    idle_timeout_s: float = 0.02  # longest wait for skin frames in one step
+
+
+@dataclass
+class SessionState:
+    """What views show: the newest tick's inputs and outputs.
+
+    The newest skin frame, its contacts and the stream's health are the ``LiveSkin``'s
+    own state (``session.live_skin.state``).
+    """
+
+    t: float = 0.0
+    ticks: int = 0
+    gesture: str | None = None
+    gesture_since: float | None = None
+    action: str = "-"
+    top: tuple[str, float] = ("-", 0.0)
+    probabilities: np.ndarray | None = None
+    class_names: tuple[str, ...] = ()
+    robot: RobotState | None = None
+    twist: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    stops: list[StopEvent] = field(default_factory=list)
+    stopped: bool = False
+    messages: deque = field(default_factory=lambda: deque(maxlen=8))
+    last_error: str = ""
+    errors: int = 0
+    ended: bool = False
+
+
+@dataclass
+class SessionResult:
+    """Figures of a finished session."""
+
+    ticks: int
+    stream_s: float
+    wall_s: float
+    commands: int
+    stops: list[StopEvent]
+    errors: int
+    ended: str
+
+    def summary(self) -> str:
+        speed = self.stream_s / self.wall_s if self.wall_s > 0 else 0.0
+        reasons = "; ".join(f"{s.t:.2f} s {s.reason}" for s in self.stops[-3:])
+        return (
+            f"{self.ticks} control ticks over {self.stream_s:.1f} s of skin stream in "
+            f"{self.wall_s:.1f} s ({speed:.1f}x real time), {self.commands} command changes, "
+            f"{len(self.stops)} stops{f' ({reasons})' if reasons else ''}, "
+            f"{self.errors} errors; {self.ended}"
+        )
+
+
+@dataclass
+class _PoseMove:
+    name: str
+    hold_to_run: bool
+    started_t: float
+
+
+class ControlSession:
+    """The control loop of one session (see the module docstring).
+
+    ``live_skin`` and ``pipeline`` come from :func:`open_session` or are built by the
+    caller (``LivePipeline.for_live_skin``); ``robot`` is the raw backend, which the
+    session wraps in its own :class:`SafetyLayer`.  ``trace`` gets a line per tick;
+    ``recorder`` (the :class:`~wovenskin.recording.native.RecordingWriter` also given to
+    the ``LiveSkin``) gets predictions, commands, robot state, stops and errors as
+    annotations.  ``on_tick(session)`` runs after every tick (benchmarks).
+    """
+
+    def __init__(
+        self,
+        live_skin: Any,
+        pipeline: Any,
+        robot: Robot,
+        mapping: ActionMapping | None = None,
+        *,
+        limits: SafetyLimits | None = None,
+        poses: PoseStore | None = None,
+        settings: SessionSettings | None = None,
+        trace: TraceWriter | None = None,
+        recorder: Any = None,
+        on_message: Callable[[str], None] | None = None,
+        on_tick: Callable[[ControlSession], None] | None = None,
+        wall_clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.live_skin = live_skin
+        self.pipeline = pipeline
+        self.robot = robot
+        self.mapping = mapping if mapping is not None else ActionMapping.load()
+        self.settings = settings or SessionSettings()
+        self.poses = poses
+        self.safety = SafetyLayer(robot, limits, clock=self._clock)
+        self.shaper = TwistShaper(self.mapping.settings)
+        self.trace = trace
+        self.recorder = recorder
+        self._on_message = on_message or (lambda _message: None)
+        self._on_tick = on_tick
+        self._wall = wall_clock
+        self.state = SessionState(class_names=tuple(getattr(pipeline, "class_names", ())))
+        self._now = 0.0
+        self._last_t: float | None = None  # stream time of the newest frame seen
+        self._last_wall: float | None = None  # wall time when it arrived
+        self._last_seq = -1
+        self._tick_t: float | None = None
+        self._pose_move: _PoseMove | None = None
+        self._pose_tried: float | None = None  # gesture_since of the last pose command
+        self._stops_seen = 0
+        self._user_stop = False  # the stop key latches until resume()
+        self._commands = 0
+        self._error_times: dict[str, float] = {}
+        self._quit = ""
+        self._started_wall: float | None = None
+        self._first_t: float | None = None
+        self._seconds: float | None = None
+        self._end_t: float | None = None  # session time at which run() ends
+        self._simulated = type(robot).step is not Robot.step
+        self.last_block_compute_s = 0.0  # recogniser + control + robot for the last block
+        self._steps_through_safety = type(self.safety).step is not Robot.step
+
+    # -- the session clock
+
+    def _clock(self) -> float:
+        return self._now
+
+    @property
+    def now(self) -> float:
+        """The session clock: skin time, advanced by the wall clock while no frames arrive."""
+        return self._now
+
+    @property
+    def user_stopped(self) -> bool:
+        """Whether the stop key (:meth:`emergency_stop`) holds the robot."""
+        return self._user_stop
+
+    # -- lifecycle
+
+    def start(self) -> None:
+        """Connect the robot (``RobotError`` if it is not there) and start the skin."""
+        self.safety.connect()
+        self._started_wall = self._wall()
+        try:
+            self.state.robot = self.safety.state()
+        except RobotError as exc:
+            self._error(f"robot: {exc}")
+        self.live_skin.start()
+
+    def close(self) -> None:
+        """Stop the robot, disconnect it and close the skin, trace and recorder."""
+        try:
+            self.safety.stop()
+        except RobotError as exc:
+            self._error(f"robot: {exc}")
+        finally:
+            try:
+                self.safety.disconnect()
+            finally:
+                self.live_skin.close()
+                if self.trace is not None:
+                    self.trace.close()
+                if self.recorder is not None:
+                    self.recorder.close()
+
+    def request_quit(self, reason: str = "quit by the user") -> None:
+        """End :meth:`run` after the current step."""
+        self._quit = reason
+
+    def emergency_stop(self, reason: str = "stop key") -> None:
+        """Stop everything now; motion resumes only after :meth:`resume`."""
+        self._user_stop = True
+        self._pose_move = None
+        self.shaper.reset()
+        self.safety.emergency_stop(reason)
+        self._report_new_stops()
+
+    def resume(self) -> None:
+        """Clear a stop; the robot moves again only on a new command."""
+        self._user_stop = False
+        self.safety.clear_stop()
+        self.shaper.reset()
+        self.state.stopped = self.safety.stopped
+        self._message("stop cleared: the robot moves again on the next command")
+
+    # -- the loop
+
+    def run(
+        self,
+        seconds: float | None = None,
+        should_continue: Callable[[], bool] | None = None,
+    ) -> SessionResult:
+        """Step until the skin ends, :meth:`request_quit`, ``seconds`` of session time
+        pass, or ``should_continue()`` returns False; returns the session's figures."""
+        if self._started_wall is None:
+            self.start()
+        self._seconds = seconds
+        if seconds is not None and self._first_t is not None:
+            self._end_t = self._now + seconds
+        while True:
+            self.step()
+            if self._quit:
+                break
+            if self.state.ended:
+                self._quit = "the skin stream ended"
+                break
+            if self._end_t is not None and self._now >= self._end_t:
+                self._quit = f"{seconds:g} s elapsed"
+                break
+            if should_continue is not None and not should_continue():
+                self._quit = self._quit or "stopped by the caller"
+                break
+        return self.result()
+
+    def result(self) -> SessionResult:
+        stream_s = 0.0 if self._first_t is None else self._now - self._first_t
+        wall_s = 0.0 if self._started_wall is None else self._wall() - self._started_wall
+        return SessionResult(
+            self.state.ticks,
+            stream_s,
+            wall_s,
+            self._commands,
+            list(self.safety.stops),
+            self.state.errors,
+            self._quit or "running",
+        )
+
+    def step(self, timeout: float | None = None) -> int:
+        """One skin poll and the ticks of the frames it brought; returns the tick count."""
+        timeout = self.settings.idle_timeout_s if timeout is None else timeout
+        block = self.live_skin.step(timeout=timeout)
+        polled = time.perf_counter()
+        skin = self.live_skin.state
+        self.state.ended = bool(skin.ended)
+        arrived = skin.seq != self._last_seq and skin.seq >= 0  # also while calibrating
+        if arrived:
+            self._last_seq = skin.seq
+            self._frames_arrived(float(skin.t))
+        if block is None or len(block.t) == 0:
+            if arrived:  # frames but no conditioned output (calibrating): the skin is alive
+                self._now = max(self._now, float(skin.t))
+                self._check_watchdogs(float(skin.t))
+                self.safety.heartbeat_skin(float(skin.t))
+            else:
+                self._idle()
+            return 0
+        ticks = self._on_block(block)
+        self.last_block_compute_s = time.perf_counter() - polled
+        return ticks
+
+    def _frames_arrived(self, t: float) -> None:
+        if self._first_t is None:  # the first poll may bring many frames: its first one
+            frames = max(1, self.live_skin.stats().good_frames)
+            self._first_t = t - (frames - 1) / self.live_skin.info.sample_rate_hz
+            if self._seconds is not None:
+                self._end_t = self._first_t + self._seconds
+        self._last_t = t
+        self._last_wall = self._wall()
+
+    def _idle(self) -> None:
+        """No conditioned frames: let the watchdogs see the time that passes."""
+        if self._last_t is None or self._last_wall is None:
+            return
+        self._now = max(self._now, self._last_t + (self._wall() - self._last_wall))
+        self._check_watchdogs(self._now)
+
+    def _on_block(self, block: Any) -> int:
+        times = np.asarray(block.t, dtype=np.float64).reshape(-1)
+        try:
+            changes = list(self.pipeline.feed(block))
+        except ValueError as exc:  # the command ends: no motion on frames we cannot trust
+            self._error(f"skin block of {len(times)} frames dropped: {exc}")
+            ended = self.pipeline.reset(float(times[0]))
+            changes = [] if ended is None else [ended]
+        self._record_predictions(float(times[-1]))
+        pending = deque(sorted(changes, key=lambda c: c.t))
+        for t in times:
+            if self._end_t is not None and t > self._end_t:
+                self._quit = f"{self._seconds:g} s elapsed"
+                return len(times)
+            while pending and pending[0].t <= t:
+                self._apply_change(pending.popleft())
+            self._tick(float(t))
+        while pending:  # changes stamped after the block's last frame (none expected)
+            self._apply_change(pending.popleft())
+        return len(times)
+
+    def _apply_change(self, change: Any) -> None:
+        self._commands += 1
+        self.state.gesture = change.gesture
+        self.state.gesture_since = float(change.t)
+        name = change.gesture or "none"
+        self._message(f"{change.t:8.2f} s  command {name} ({change.reason})")
+        if self.recorder is not None:
+            payload = {"gesture": change.gesture, "reason": change.reason}
+            self.recorder.add_annotation("commands", float(change.t), payload)
+
+    # -- one tick
+
+    def _tick(self, t: float) -> None:
+        dt = 0.0 if self._tick_t is None else max(0.0, t - self._tick_t)
+        self._tick_t = t
+        self._now = max(self._now, t)
+        self._check_watchdogs(t)  # before the heartbeat: a gap in the stream is a stall
+        self.safety.heartbeat_skin(t)
+        self._clear_recovered_stops()
+        self._control(t, dt)
+        if dt > 0 and self._simulated:
+            try:
+                if self._steps_through_safety:
+                    self.safety.step(dt)
+                else:
+                    self.robot.step(dt)
+            except RobotError as exc:
+                self._robot_failed(exc)
+        self._read_robot()
+        self.state.t = t
+        self.state.ticks += 1
+        self.state.stopped = self.safety.stopped
+        if self.state.robot is not None:
+            if self.trace is not None:
+                self.trace.write(t, self.state.gesture, self.state.robot)
+            if self.recorder is not None:
+                self._record_robot(t)
+        if self._on_tick is not None:
+            self._on_tick(self)
+
+    def _control(self, t: float, dt: float) -> None:
+        gesture = self.state.gesture
+        action = self.mapping.action_for(gesture) if gesture is not None else None
+        if self.safety.stopped:
+            self._pose_move = None
+            self.shaper.reset()
+            self.state.twist = np.zeros(6)
+            self.state.action = "stopped"
+            return
+        if self._pose_move is not None and not self._continue_pose_move(action):
+            self._pose_move = None
+        if self._pose_move is not None:
+            self.safety.heartbeat_command(t)
+            return
+        if isinstance(action, PoseAction):
+            if self._pose_tried != self.state.gesture_since:  # once per command
+                self._pose_tried = self.state.gesture_since
+                if self._start_pose_move(action, t):
+                    self.safety.heartbeat_command(t)
+                    return
+            action = None  # reached, or the move could not start: hold still
+        self._send_twist(gesture if isinstance(action, TwistAction) else None, t, dt)
+
+    def _send_twist(self, gesture: str | None, t: float, dt: float) -> None:
+        robot = self.state.robot
+        target = np.zeros(6)
+        if gesture is not None and robot is not None:
+            target = np.asarray(self.mapping.target_twist(gesture, robot.tcp), dtype=float)
+        twist = self.shaper.update(target, min(dt, self.settings.max_shaper_dt_s))
+        self.state.action = f"twist {gesture}" if gesture is not None else "-"
+        try:
+            self.safety.send_twist(twist)
+        except (RobotError, ValueError) as exc:
+            self._robot_failed(exc)
+            return
+        self.state.twist = np.asarray(twist, dtype=float)
+        self.safety.heartbeat_command(t)
+
+    def _start_pose_move(self, action: PoseAction, t: float) -> bool:
+        q = self._stored_pose(action.name)
+        if q is None:
+            return False
+        self.shaper.reset()
+        self.state.twist = np.zeros(6)
+        try:
+            self.safety.move_to_joints(q, self.settings.pose_speed_fraction)
+        except (RobotError, ValueError) as exc:
+            self._robot_failed(exc)
+            return False
+        self._pose_move = _PoseMove(action.name, action.hold_to_run, t)
+        mode = "hold to run" if action.hold_to_run else "to completion"
+        self.state.action = f"move to {action.name} ({mode})"
+        self._message(f"{t:8.2f} s  moving to the {action.name} pose ({mode})")
+        return True
+
+    def _continue_pose_move(self, action: Any) -> bool:
+        """Whether the running pose move goes on this tick; stops it when it must end."""
+        move = self._pose_move
+        assert move is not None
+        same = isinstance(action, PoseAction) and action.name == move.name
+        if same or (action is None and not move.hold_to_run):
+            robot = self.state.robot
+            if robot is not None and not robot.moving and self._tick_t != move.started_t:
+                self.state.action = "-"
+                self._message(f"{self._now:8.2f} s  reached the {move.name} pose")
+                return False
+            return True
+        try:  # the command ended (hold to run) or another one took over
+            self.safety.stop()
+        except RobotError as exc:
+            self._robot_failed(exc)
+        self.state.action = "-"
+        return False
+
+    def _stored_pose(self, name: str) -> np.ndarray | None:
+        stored = self.poses.get(name) if self.poses is not None else None
+        if stored is not None:
+            return np.asarray(stored.q, dtype=float)
+        default = _simulated_default_pose(self.robot, name)
+        if default is not None:
+            return default
+        self._error(f"no stored {name!r} pose: store one with `wovenskin pose set {name}`")
+        return None
+
+    def _robot_failed(self, exc: Exception) -> None:
+        self._error(f"robot: {exc}")
+        self._pose_move = None
+        self.shaper.reset()
+        self.state.twist = np.zeros(6)
+        try:
+            self.safety.stop()
+        except RobotError as again:
+            self._error(f"robot: stop failed: {again}")
+
+    def _read_robot(self) -> None:
+        try:
+            self.state.robot = self.safety.state()
+        except RobotError as exc:
+            self._error(f"robot: {exc}")
+
+    # -- safety bookkeeping
+
+    def _check_watchdogs(self, now: float) -> None:
+        try:
+            self.safety.check(now)
+        except RobotError as exc:
+            self._error(f"robot: {exc}")
+        self._report_new_stops()
+
+    def _report_new_stops(self) -> None:
+        stops = self.safety.stops
+        for stop in stops[self._stops_seen :]:
+            self.state.stops.append(stop)
+            self._message(f"{stop.t:8.2f} s  STOP ({stop.source}): {stop.reason}")
+            if self.recorder is not None:
+                payload = {"reason": stop.reason, "source": stop.source}
+                self.recorder.add_annotation("stops", float(stop.t), payload)
+        self._stops_seen = len(stops)
+        self.state.stopped = self.safety.stopped
+
+    def _clear_recovered_stops(self) -> None:
+        """A watchdog stop ends once frames flow again and no command is active."""
+        if self._user_stop or not self.safety.stopped or self.state.gesture is not None:
+            return
+        last = self.safety.stops[-1] if self.safety.stops else None
+        self.safety.clear_stop()
+        self.shaper.reset()
+        why = f" ({last.reason})" if last is not None else ""
+        self._message(f"{self._now:8.2f} s  recovered from the stop{why}")
+
+    # -- reporting
+
+    def _message(self, text: str) -> None:
+        self.state.messages.append(text)
+        self._on_message(text)
+
+    def _error(self, text: str) -> None:
+        line = " ".join(str(text).split())
+        self.state.errors += 1
+        self.state.last_error = line
+        now = self._wall()
+        if now - self._error_times.get(line, -np.inf) >= self.settings.error_repeat_s:
+            self._error_times[line] = now
+            self._message(f"error: {line}")
+        if self.recorder is not None:
+            self.recorder.add_annotation("errors", self._now, {"message": line})
+
+    def _record_predictions(self, t: float) -> None:
+        probabilities = getattr(self.pipeline, "latest_probabilities", None)
+        if probabilities is None:
+            return
+        probabilities = np.asarray(probabilities, dtype=np.float32)
+        self.state.probabilities = probabilities
+        if probabilities.size and self.state.class_names:
+            k = int(np.argmax(probabilities))
+            self.state.top = (self.state.class_names[k], float(probabilities[k]))
+        if self.recorder is not None:
+            top, p = self.state.top
+            payload = {"top": top, "p": p, "probabilities": probabilities}
+            self.recorder.add_annotation("predictions", t, payload)
+
+    def _record_robot(self, t: float) -> None:
+        robot = self.state.robot
+        assert robot is not None
+        payload = {
+            "q": np.asarray(robot.q, dtype=np.float64),
+            "tcp": np.asarray(robot.tcp.position, dtype=np.float64),
+            "quat": np.asarray(robot.tcp.quat, dtype=np.float64),
+            "tcp_speed": robot.tcp_speed,
+            "twist_command": np.asarray(self.state.twist, dtype=np.float64),
+            "gesture": self.state.gesture,
+        }
+        self.recorder.add_annotation("robot", t, payload)
+
+
+def _simulated_default_pose(robot: Robot, name: str) -> np.ndarray | None:
+    """The simulated TM5-900's built-in home and initial poses when none is stored."""
+    if type(robot).__module__.startswith("wovenskin.robots.sim"):
+        from wovenskin.robots.sim import tm5_900
+
+        defaults = {"home": tm5_900.HOME_Q, "initial": tm5_900.INITIAL_Q}
+        if name in defaults:
+            return np.asarray(defaults[name], dtype=float)
+    return None
+
+
+# -------------------------------------------------------------------------- wiring
+
+
+def open_session(
+    skin: str = "sim",
+    robot: str | Robot = "sim",
+    model: str | Path | None = None,
+    *,
+    fast_replay: bool = False,
+    mapping: str | Path | None = None,
+    poses: str | Path | None = None,
+    limits: SafetyLimits | None = None,
+    trace: TraceWriter | None = None,
+    record: str | Path | None = None,
+    overwrite: bool = False,
+    recognizer: Any = None,
+    pipeline_settings: Any = None,
+    settings: SessionSettings | None = None,
+    on_message: Callable[[str], None] | None = None,
+    on_tick: Callable[[ControlSession], None] | None = None,
+) -> ControlSession:
+    """Wire skin, conditioning, recogniser, arbiter, mapping, safety and robot.
+
+    ``skin``: ``sim``, ``serial:PORT`` or ``replay:FILE`` (``fast_replay`` plays a replay
+    as fast as possible unless its spec sets ``speed``); ``robot``: ``sim``, ``tm:HOST``,
+    ``ur:HOST`` or a backend object; ``model``: a checkpoint directory (default: the
+    shipped model) unless a ``recognizer`` object is given; ``pipeline_settings``: the
+    execution rules (default: the model's recommended arbiter settings); ``record``: a
+    ``.wsrec`` path for the skin frames, predictions, commands and robot state.
+    """
+    from wovenskin.live import LiveSkin
+    from wovenskin.recognition.pipeline import (
+        LivePipeline,
+        PipelineSettings,
+        arbiter_settings_for_model,
+        conditioning_for_model,
+        load_recognizer,
+    )
+    from wovenskin.robots.registry import make_robot
+    from wovenskin.skin.source import open_source, parse_spec
+
+    recognizer = recognizer if recognizer is not None else load_recognizer(model)
+    action_mapping = ActionMapping.load(mapping)
+    pose_store = PoseStore.load(poses)
+    kind, _, options = parse_spec(skin)
+    overrides = {"speed": 0} if fast_replay and kind == "replay" and "speed" not in options else {}
+    source = open_source(skin, **overrides)
+    backend = make_robot(robot) if isinstance(robot, str) else robot
+    conditioning = conditioning_for_model(recognizer)
+    recorder = None
+    if record is not None:
+        from dataclasses import asdict
+
+        from wovenskin.recording.native import RecordingWriter
+        from wovenskin.signal.config import ConditioningConfig
+
+        used = conditioning or ConditioningConfig(sample_rate_hz=source.info.sample_rate_hz)
+        recorded_settings = {
+            "conditioning": used.to_dict(),
+            "session": {
+                "robot": robot if isinstance(robot, str) else type(robot).__name__,
+                "model": str(getattr(recognizer, "checkpoint_dir", model)),
+                "mapping": str(mapping) if mapping is not None else "default",
+                "limits": _jsonable(asdict(limits or SafetyLimits())),
+            },
+        }
+        recorder = RecordingWriter(
+            record, source.info, {"skin_source": skin}, recorded_settings, overwrite=overwrite
+        )
+    live_skin = LiveSkin(source, conditioning, on_message=on_message, recorder=recorder)
+    if pipeline_settings is None:  # the execution rules recommended for this model
+        pipeline_settings = PipelineSettings(arbiter=arbiter_settings_for_model(recognizer))
+    pipeline = LivePipeline.for_live_skin(live_skin, recognizer, pipeline_settings)
+    return ControlSession(
+        live_skin,
+        pipeline,
+        backend,
+        action_mapping,
+        limits=limits,
+        poses=pose_store,
+        settings=settings,
+        trace=trace,
+        recorder=recorder,
+        on_message=on_message,
+        on_tick=on_tick,
+    )
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    return value
