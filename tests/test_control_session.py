@@ -13,9 +13,9 @@ import json
 import mujoco
 import numpy as np
 import pytest
+
 from wovenskin.control.mapping import ActionMapping, PoseAction
 from wovenskin.control.poses import PoseStore
-
 from wovenskin.control.session import ControlSession, SessionSettings, open_session
 from wovenskin.control.trace import TRACE_KEYS, TraceWriter
 from wovenskin.gestures import CLASS_NAMES
