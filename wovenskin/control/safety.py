@@ -34,7 +34,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wovenskin.robots.base import N_JOINTS, JointLimits, Pose, Robot, RobotError, RobotState
+from wovenskin.robots.base import (
+    N_JOINTS,
+    JointLimits,
+    Pose,
+    Robot,
+    RobotError,
+    RobotState,
+    finite_vector,
+)
 
 log = logging.getLogger(__name__)
 
@@ -175,7 +183,7 @@ class SafetyLayer(Robot):
 
     def move_to_joints(self, q: np.ndarray, speed_fraction: float = 0.2) -> None:
         self._require_running()
-        goal = _finite_vector(q, N_JOINTS, "joint target")
+        goal = finite_vector(q, N_JOINTS, "joint target")
         fraction = _fraction(speed_fraction)
         limits = self.joint_limits()
         margin = self.limits.joint_margin
@@ -324,16 +332,9 @@ class SafetyLayer(Robot):
 
     def _checked_twist(self, twist: object, now: float) -> np.ndarray:
         try:
-            command = np.array(twist, dtype=float)
-        except (TypeError, ValueError):
-            problem = "twist is not numeric"
-        else:
-            if command.shape != (6,):
-                problem = f"twist must have shape (6,), got {command.shape}"
-            elif not np.all(np.isfinite(command)):
-                problem = "twist has non-finite values"
-            else:
-                return command
+            return finite_vector(twist, 6, "twist")
+        except ValueError as exc:
+            problem = str(exc)
         self._stop_now(now, f"bad command refused: {problem}", "command")
         raise ValueError(problem)
 
@@ -518,18 +519,6 @@ def default_fk(robot: Robot) -> Kinematics | None:
 
 def _silent(last: float | None, now: float, limit: float) -> bool:
     return last is not None and now - last > limit
-
-
-def _finite_vector(values: object, size: int, what: str) -> np.ndarray:
-    try:
-        vector = np.array(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{what} is not numeric") from None
-    if vector.shape != (size,):
-        raise ValueError(f"{what} must have shape ({size},), got {vector.shape}")
-    if not np.all(np.isfinite(vector)):
-        raise ValueError(f"{what} has non-finite values")
-    return vector
 
 
 def _fraction(speed_fraction: object) -> float:

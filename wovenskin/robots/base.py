@@ -26,6 +26,20 @@ class RobotError(RuntimeError):
     """A robot backend could not carry out a command; the message is one line."""
 
 
+def finite_vector(values: object, size: int, what: str) -> np.ndarray:
+    """``values`` as a float vector of ``size`` finite numbers; else a one-line ``ValueError``
+    naming ``what`` (every backend and the safety layer check commands with this)."""
+    try:
+        vector = np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} is not numeric") from None
+    if vector.shape != (size,):
+        raise ValueError(f"{what} must have shape ({size},), got {vector.shape}")
+    if not np.all(np.isfinite(vector)):
+        raise ValueError(f"{what} has non-finite values")
+    return vector
+
+
 @dataclass(frozen=True)
 class Pose:
     """A pose of the tool centre point in the base frame."""

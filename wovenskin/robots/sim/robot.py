@@ -20,7 +20,15 @@ import mink
 import mujoco
 import numpy as np
 
-from wovenskin.robots.base import N_JOINTS, JointLimits, Pose, Robot, RobotError, RobotState
+from wovenskin.robots.base import (
+    N_JOINTS,
+    JointLimits,
+    Pose,
+    Robot,
+    RobotError,
+    RobotState,
+    finite_vector,
+)
 from wovenskin.robots.sim import tm5_900
 from wovenskin.robots.sim.ik import DifferentialIK, IKInfo
 
@@ -206,13 +214,9 @@ class SimRobot(Robot):
     def send_twist(self, twist: np.ndarray) -> None:
         self._require_connected()
         try:
-            command = np.array(twist, dtype=float)
-        except (TypeError, ValueError):
-            raise self._refuse("twist is not numeric") from None
-        if command.shape != (6,):
-            raise self._refuse(f"twist must have shape (6,), got {command.shape}")
-        if not np.all(np.isfinite(command)):
-            raise self._refuse("twist has non-finite values")
+            command = finite_vector(twist, 6, "twist")
+        except ValueError as exc:
+            raise self._refuse(str(exc)) from None
         self._move = None
         self._stopping = None
         self._velocity_mode = True
@@ -263,13 +267,9 @@ class SimRobot(Robot):
 
     def _joint_goal(self, q: np.ndarray) -> np.ndarray:
         try:
-            goal = np.array(q, dtype=float)
-        except (TypeError, ValueError):
-            raise self._refuse("joint target is not numeric") from None
-        if goal.shape != (N_JOINTS,):
-            raise self._refuse(f"joint target must have shape ({N_JOINTS},), got {goal.shape}")
-        if not np.all(np.isfinite(goal)):
-            raise self._refuse("joint target has non-finite values")
+            goal = finite_vector(q, N_JOINTS, "joint target")
+        except ValueError as exc:
+            raise self._refuse(str(exc)) from None
         if not _within_limits(goal, tm5_900.JOINT_LIMITS):
             raise self._refuse("joint target is outside the joint limits")
         return goal

@@ -25,7 +25,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from wovenskin.robots.base import JointLimits, Pose, Robot, RobotError, RobotState
+from wovenskin.robots.base import (
+    JointLimits,
+    Pose,
+    Robot,
+    RobotError,
+    RobotState,
+    finite_vector,
+)
 from wovenskin.robots.techman.protocol import (
     ETHERNET_SLAVE_PORT,
     LISTEN_NODE_PORT,
@@ -452,13 +459,9 @@ class TechmanRobot(Robot):
 
     def send_twist(self, twist: np.ndarray) -> None:
         try:
-            command = np.asarray(twist, dtype=float)
-        except (TypeError, ValueError):
-            raise RobotError("twist is not numeric") from None
-        if command.shape != (6,):
-            raise RobotError(f"twist must have shape (6,), got {command.shape}")
-        if not np.all(np.isfinite(command)):
-            raise RobotError("twist has non-finite values")
+            command = finite_vector(twist, 6, "twist")
+        except ValueError as exc:
+            raise RobotError(str(exc)) from None
         linear_mm_s = command[:3] * 1000.0
         if float(np.linalg.norm(linear_mm_s)) > self.max_speed_mm_s * (1 + 1e-6):
             raise RobotError(

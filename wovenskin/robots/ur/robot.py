@@ -22,7 +22,14 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from wovenskin.robots.base import JointLimits, Pose, Robot, RobotError, RobotState
+from wovenskin.robots.base import (
+    JointLimits,
+    Pose,
+    Robot,
+    RobotError,
+    RobotState,
+    finite_vector,
+)
 
 # UR e-series: every joint turns +-360 deg; base and shoulder of the bigger arms are the
 # slowest joints (UR10e: 120 deg/s), so that is the default speed limit for all six.
@@ -186,13 +193,9 @@ class URRobot(Robot):
 
     def send_twist(self, twist: np.ndarray) -> None:
         try:
-            command = np.asarray(twist, dtype=float)
-        except (TypeError, ValueError):
-            raise RobotError("twist is not numeric") from None
-        if command.shape != (6,):
-            raise RobotError(f"twist must have shape (6,), got {command.shape}")
-        if not np.all(np.isfinite(command)):
-            raise RobotError("twist has non-finite values")
+            command = finite_vector(twist, 6, "twist")
+        except ValueError as exc:
+            raise RobotError(str(exc)) from None
         control, _ = self._require()
         fault = self._fault()
         if fault is not None:
