@@ -208,6 +208,31 @@ def test_a_stalled_live_skin_stops_the_arm_by_the_wall_clock(tmp_path) -> None:
     session.close()
 
 
+def test_a_host_pause_does_not_stop_a_replay_played_faster_than_real_time(tmp_path) -> None:
+    stream = stream_of("swipe_up")
+    path = tmp_path / "s.npz"
+    write_labelled_stream(path, stream)
+    mid = int(((stream.event_start_s[0] + stream.event_end_s[0]) / 2) * 200)
+    live_skin = LiveSkin(StallingSource(path, mid))
+    clock = {"now": 0.0}
+
+    def wall() -> float:
+        clock["now"] += 0.01
+        return clock["now"]
+
+    session = ControlSession(
+        live_skin, LivePipeline.for_live_skin(live_skin, ContactMeans("swipe_up")), SimRobot(),
+        settings=SessionSettings(wall_clock_stalls=False), wall_clock=wall,
+    )  # fmt: skip
+    session.start()
+    while session.state.ticks < mid - 120:
+        session.step()
+    for _ in range(30):  # 0.3 s of wall time without frames: the host paused, not the skin
+        session.step(timeout=0)
+    assert not session.safety.stopped
+    session.close()
+
+
 def test_the_stop_key_latches_until_resume(tmp_path) -> None:
     stream = stream_of("swipe_up")
     seen = {"active_ticks": 0, "stopped_at": None, "resumed_at": None, "speed_while_stopped": []}

@@ -25,7 +25,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +47,11 @@ class SessionSettings:
     max_shaper_dt_s: float = 0.05  # longest step the twist shaper integrates at once
     error_repeat_s: float = 1.0  # the same error line is reported at most this often
     idle_timeout_s: float = 0.02  # longest wait for skin frames in one step
+    # Time without frames counts on the wall clock (a live skin).  False only for a source
+    # played faster than real time into a simulated arm, which moves on the stream's clock:
+    # there only gaps in the stream's own timestamps stop the arm, so a pause of the host
+    # (a busy machine) cannot change the outcome of a replay.
+    wall_clock_stalls: bool = True
 
 
 @dataclass
@@ -306,6 +311,8 @@ class ControlSession:
     def _idle(self) -> None:
         """No conditioned frames: let the watchdogs see the time that passes."""
         if self._last_t is None or self._last_wall is None:
+            return
+        if not self.settings.wall_clock_stalls:
             return
         self._now = max(self._now, self._last_t + (self._wall() - self._last_wall))
         self._check_watchdogs(self._now)
@@ -630,6 +637,9 @@ def open_session(
     if pipeline_settings is None:  # the execution rules recommended for this model
         pipeline_settings = PipelineSettings(arbiter=arbiter_settings_for_model(recognizer))
     pipeline = LivePipeline.for_live_skin(live_skin, recognizer, pipeline_settings)
+    as_fast_as_read = str({**options, **overrides}.get("speed", "")) in ("0", "0.0")
+    if as_fast_as_read and type(backend).step is not Robot.step:
+        settings = replace(settings or SessionSettings(), wall_clock_stalls=False)
     return ControlSession(
         live_skin,
         pipeline,
