@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 from rich.console import Console
+from stand_ins import ContactMeans
 from typer.testing import CliRunner
 
 from wovenskin.bench import control as bench_control
@@ -20,22 +21,7 @@ from wovenskin.bench.control import (
     run_control_benchmark,
 )
 from wovenskin.cli import app
-from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recognition import shipped
-
-
-class ContactMeansPush:
-    """A stand-in recogniser: every window with contact is ``push``."""
-
-    class_names = CLASS_NAMES
-
-    class meta:  # noqa: N801 - the window length, as CheckpointMeta gives it
-        window = 30
-
-    def predict_proba(self, windows: np.ndarray) -> np.ndarray:
-        out = np.zeros((len(windows), len(CLASS_NAMES)), dtype=np.float32)
-        out[:, CLASS_NAMES.index("push")] = 1.0
-        return out
 
 
 def test_ik_steps_are_timed() -> None:
@@ -47,7 +33,7 @@ def test_ik_steps_are_timed() -> None:
 def test_all_figures_with_a_stand_in_recogniser() -> None:
     result = run_control_benchmark(
         loop_seconds=1.0, streams=1, stream_seconds=10.0, ik_steps=50,
-        recognizer=ContactMeansPush(), gestures=["push"],
+        recognizer=ContactMeans("push"), gestures=["push"],
     )  # fmt: skip
     assert result.ik_steps == 50 and result.ik_step_p99_ms >= result.ik_step_median_ms > 0
     assert 150 < result.loop_rate_hz < 250  # the simulated skin paced at 200 Hz
@@ -106,7 +92,7 @@ def test_cli_prints_figures(monkeypatch) -> None:
         seen.update(loop_seconds=loop_seconds, streams=streams, ik_steps=ik_steps)
         return run_control_benchmark(
             loop_seconds=0, streams=1, stream_seconds=6.0, ik_steps=ik_steps,
-            recognizer=ContactMeansPush(), gestures=["push"],
+            recognizer=ContactMeans("push"), gestures=["push"],
         )  # fmt: skip
 
     monkeypatch.setattr(bench_control, "run_control_benchmark", fake)

@@ -13,6 +13,7 @@ import json
 import mujoco
 import numpy as np
 import pytest
+from stand_ins import ContactMeans
 
 from wovenskin.control.mapping import ActionMapping, PoseAction
 from wovenskin.control.poses import PoseStore
@@ -28,23 +29,6 @@ from wovenskin.robots.sim import SimRobot
 from wovenskin.robots.sim.tm5_900 import INITIAL_Q, forward_kinematics
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.skin.source import open_source
-
-
-class ContactMeans:
-    """A stand-in recogniser: every window with contact is ``gesture``, confidently."""
-
-    class_names = CLASS_NAMES
-
-    class meta:  # noqa: N801 - the window length, as CheckpointMeta gives it
-        window = 30
-
-    def __init__(self, gesture: str) -> None:
-        self.gesture = gesture
-
-    def predict_proba(self, windows: np.ndarray) -> np.ndarray:
-        out = np.zeros((len(windows), len(CLASS_NAMES)), dtype=np.float32)
-        out[:, CLASS_NAMES.index(self.gesture)] = 1.0
-        return out
 
 
 def pose_of(q: np.ndarray) -> Pose:

@@ -4,28 +4,13 @@ from __future__ import annotations
 
 import io
 
-import numpy as np
 from rich.console import Console
+from stand_ins import ContactMeans
 
 from wovenskin.control.session import open_session
-from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.ui.run_view import handle_keys, render_run, run_with_view, terminal_keys
-
-
-class ContactMeansSwipeLeft:
-    """A stand-in recogniser: every window with contact is ``swipe_left``."""
-
-    class_names = CLASS_NAMES
-
-    class meta:  # noqa: N801 - the window length, as CheckpointMeta gives it
-        window = 30
-
-    def predict_proba(self, windows: np.ndarray) -> np.ndarray:
-        out = np.zeros((len(windows), len(CLASS_NAMES)), dtype=np.float32)
-        out[:, CLASS_NAMES.index("swipe_left")] = 1.0
-        return out
 
 
 def session_on_replay(tmp_path, **kwargs):
@@ -33,7 +18,7 @@ def session_on_replay(tmp_path, **kwargs):
     path = tmp_path / "s.npz"
     write_labelled_stream(path, stream)
     return open_session(
-        f"replay:{path}", "sim", recognizer=ContactMeansSwipeLeft(), fast_replay=True,
+        f"replay:{path}", "sim", recognizer=ContactMeans("swipe_left"), fast_replay=True,
         poses=tmp_path / "poses.toml", **kwargs,
     )  # fmt: skip
 

@@ -1,0 +1,28 @@
+"""Stand-ins shared by the tests of the control layer (not collected as tests)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wovenskin.gestures import CLASS_NAMES
+
+
+class ContactMeans:
+    """A stand-in recogniser: every window with contact is ``gesture``, confidently.
+
+    The pipeline runs the model only on windows with contact, so a session driven by it
+    acts exactly while fingers touch the skin -- no trained model needed.
+    """
+
+    class_names = CLASS_NAMES
+
+    class meta:  # noqa: N801 - the window length, as CheckpointMeta gives it
+        window = 30
+
+    def __init__(self, gesture: str) -> None:
+        self.gesture = gesture
+
+    def predict_proba(self, windows: np.ndarray) -> np.ndarray:
+        out = np.zeros((len(windows), len(CLASS_NAMES)), dtype=np.float32)
+        out[:, CLASS_NAMES.index(self.gesture)] = 1.0
+        return out
