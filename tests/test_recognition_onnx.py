@@ -5,6 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import textwrap
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,7 @@ def make_checkpoint(
     directory: Path, name: str, rows: int = 10, cols: int = 10, window: int = 30, k: int = 15
 ) -> torch.nn.Module:
     """A checkpoint whose logits span several units, so probabilities are not uniform."""
-    torch.manual_seed(hash((name, rows, cols)) % 1000)
+    torch.manual_seed(zlib.crc32(f"{name}-{rows}x{cols}".encode()) % 1000)  # not hash(): salted
     model = build_model(name, rows, cols, window, k)
     model.set_input_scale(0.2)
     with torch.no_grad():  # scale the output layer so logits spread by about 4 units
@@ -70,7 +71,9 @@ def test_onnx_runtime_matches_torch(tmp_path: Path, name: str, rows: int, cols: 
         np.testing.assert_allclose(probabilities, softmax(logits), atol=ATOL, rtol=0)
         np.testing.assert_allclose(recognizer.predict_logits(windows), logits, atol=1e-3, rtol=1e-4)
         np.testing.assert_allclose(probabilities.sum(axis=1), 1.0, atol=1e-5)
-        assert np.array_equal(recognizer.predict(windows), logits.argmax(axis=1))
+        top2 = np.sort(logits, axis=1)[:, -2:]
+        clear = top2[:, 1] - top2[:, 0] > 1e-3  # an exact tie may break either way
+        assert np.array_equal(recognizer.predict(windows)[clear], logits.argmax(axis=1)[clear])
         spread.append(probabilities.max(axis=1))
     assert np.concatenate(spread).max() > 0.5  # not a trivially uniform comparison
 
