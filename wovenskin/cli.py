@@ -858,10 +858,22 @@ def robot_errors(fn):
 @user_errors
 @robot_errors
 def run(
-    skin: str = typer.Option("sim", help=SKIN_HELP),
+    skin: str = typer.Option(
+        None, help=SKIN_HELP + " Default: sim:auto=0 with the dashboard, else sim."
+    ),
     robot: str = typer.Option("sim", help=ROBOT_HELP),
     model: Path = typer.Option(None, help=MODEL_HELP),
-    headless: bool = typer.Option(False, help="No view; replays run as fast as possible."),
+    view: str = typer.Option("dashboard", help="dashboard (web page), terminal or none."),
+    headless: bool = typer.Option(
+        False, help="No view (same as --view none); replays run as fast as possible."
+    ),
+    host: str = typer.Option("127.0.0.1", help="Dashboard address; not loopback needs a token."),
+    port: int = typer.Option(8000, help="Dashboard port."),
+    token: str = typer.Option(None, help="Dashboard token (made up when --host is not local)."),
+    open_browser: bool = typer.Option(
+        True, "--open/--no-open", help="Open the dashboard in the default web browser."
+    ),
+    ui_rate: float = typer.Option(30.0, help="Dashboard updates per second (30-60)."),
     trace: str = typer.Option(
         None, help="Write a JSON line per control tick to this .jsonl file ('-': stdout)."
     ),
@@ -871,16 +883,34 @@ def run(
     poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
     overwrite: bool = typer.Option(False, help="Replace existing --trace / --record files."),
 ) -> None:
-    """Drive a robot with gestures: skin, recogniser, mapping, safety and robot in one loop."""
+    """Drive a robot with gestures: skin, recogniser, mapping, safety and robot in one loop.
+
+    With no options: the live dashboard at http://127.0.0.1:8000 on the simulated skin and
+    arm.  --skin serial:PORT and --robot tm:HOST drive real hardware through the same loop.
+    """
     from wovenskin.control.session import open_session
     from wovenskin.control.trace import TraceWriter
 
+    if headless:
+        view = "none"
+    if view not in ("dashboard", "terminal", "none"):
+        raise ValueError(f"--view must be dashboard, terminal or none, got {view!r}")
+    headless = view == "none"
+    if skin is None:
+        skin = "sim:auto=0" if view == "dashboard" else "sim"
     to_stdout = trace == "-"
     out = err_console if to_stdout or headless else console
     if trace == "-" and not headless:
         raise ValueError("--trace - (stdout) needs --headless")
     if seconds is not None and not seconds > 0:
         raise ValueError(f"--seconds must be positive, got {seconds}")
+    if view == "dashboard":
+        _run_dashboard(
+            skin, robot, model, host=host, port=port, token=token, open_browser=open_browser,
+            ui_rate=ui_rate, trace=trace, record=record, seconds=seconds, mapping=mapping,
+            poses=poses, overwrite=overwrite,
+        )  # fmt: skip
+        return
     writer = TraceWriter(trace, overwrite=overwrite) if trace else None
 
     def report(message: str) -> None:
@@ -914,6 +944,54 @@ def run(
         out.print(f"trace: {writer.lines} lines in {writer.path}", highlight=False)
     if record is not None:
         out.print(f"recording: {record}", highlight=False)
+
+
+def _run_dashboard(
+    skin: str, robot: str, model: Path | None, *, host: str, port: int, token: str | None,
+    open_browser: bool, ui_rate: float, trace: str | None, record: Path | None,
+    seconds: float | None, mapping: Path | None, poses: Path | None, overwrite: bool,
+) -> None:  # fmt: skip
+    """``wovenskin run`` with the web dashboard (see :mod:`wovenskin.ui.dashboard`)."""
+    import socket
+    import webbrowser
+
+    from wovenskin.control.session import open_session
+    from wovenskin.control.trace import TraceWriter
+    from wovenskin.ui.dashboard.runner import DashboardRunner
+    from wovenskin.ui.dashboard.server import needs_token, new_token, serve
+
+    if not 30.0 <= ui_rate <= 60.0:
+        raise ValueError(f"--ui-rate must be 30-60 updates per second, got {ui_rate}")
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn does
+        try:
+            probe.bind((host, port))
+        except OSError as exc:
+            why = f"cannot listen on {host}:{port} ({exc.strerror})"
+            raise ValueError(f"{why}: choose another with --port") from None
+    if needs_token(host) and token is None:
+        token = new_token()
+    first = {"record": record, "trace": TraceWriter(trace, overwrite=overwrite) if trace else None}
+
+    def opener(skin_spec: str, robot_spec: str):
+        # The recording and trace given on the command line belong to the first session.
+        recording, writer = first.pop("record", None), first.pop("trace", None)
+        return open_session(
+            skin_spec, robot_spec, model, mapping=mapping, poses=poses, trace=writer,
+            record=recording, overwrite=overwrite,
+        )  # fmt: skip
+
+    runner = DashboardRunner(opener, skin, robot, ui_rate_hz=ui_rate)
+
+    def ready(url: str) -> None:
+        console.print(f"wovenskin dashboard: [bold]{url}[/bold]  (Ctrl-C quits)")
+        console.print(f"skin {runner.skin_spec}, robot {runner.robot_spec}", highlight=False)
+        if open_browser:
+            webbrowser.open(url)
+
+    serve(runner, host, port, token if needs_token(host) else token, on_ready=ready,
+          seconds=seconds)  # fmt: skip
+    console.print("dashboard closed; the robot was stopped and disconnected", highlight=False)
 
 
 @pose_app.command("set")

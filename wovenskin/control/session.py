@@ -25,7 +25,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -168,6 +168,8 @@ class ControlSession:
         self._seconds: float | None = None
         self._end_t: float | None = None  # session time at which run() ends
         self._simulated = type(robot).step is not Robot.step
+        self.speed_scale = 1.0  # set_speed_scale: fraction of the mapping's speeds
+        self.recording_context: dict[str, Any] = {}  # what start_recording writes as settings
         self.last_block_compute_s = 0.0  # recogniser + control + robot for the last block
         self._steps_through_safety = type(self.safety).step is not Robot.step
 
@@ -233,6 +235,66 @@ class ControlSession:
         self.shaper.reset()
         self.state.stopped = self.safety.stopped
         self._message("stop cleared: the robot moves again on the next command")
+
+    def set_speed_scale(self, scale: float) -> None:
+        """Scale gesture twists and pose moves by ``scale`` (0.05-1); the caps still hold."""
+        scale = float(scale)
+        if not np.isfinite(scale) or not 0.05 <= scale <= 1.0:
+            raise ValueError(f"speed scale must be between 0.05 and 1, got {scale}")
+        self.speed_scale = scale
+        self._message(f"speed scaled to {scale:.0%}")
+
+    def go_to_pose(self, name: str) -> bool:
+        """Start a move to the stored ``name`` pose that runs to completion (the dashboard's
+        go-home button); a gesture, the stop key or a watchdog ends it.  Returns whether
+        the move started: not while stopped, nor without a stored (or built-in) pose."""
+        if name not in ("home", "initial"):
+            raise ValueError(f"unknown pose {name!r}: use home or initial")
+        if self.safety.stopped:
+            self._error(f"cannot go to the {name} pose while stopped: clear the stop first")
+            return False
+        self._pose_move = None
+        return self._start_pose_move(PoseAction(name, hold_to_run=False), self._now)
+
+    def store_pose(self, name: str) -> None:
+        """Store the arm's current joints as the ``name`` pose (``PoseStore`` file)."""
+        from wovenskin.control.poses import set_pose_from_robot
+
+        if self.poses is None:
+            self.poses = PoseStore.load()
+        stored = set_pose_from_robot(self.poses, name, self.safety)
+        degrees = ", ".join(f"{v:.1f}" for v in np.degrees(stored.q))
+        self._message(f"stored the {name} pose ({degrees} deg) in {self.poses.path}")
+
+    @property
+    def recording(self) -> bool:
+        return self.recorder is not None
+
+    def start_recording(self, path: str | Path, overwrite: bool = False) -> Path:
+        """Write raw frames, predictions, commands, robot state and stops to ``path``
+        (``.wsrec``) from now on; ``FileExistsError`` unless ``overwrite``."""
+        from wovenskin.recording.native import RecordingWriter
+
+        if self.recorder is not None:
+            raise RuntimeError(f"already recording to {self.recorder.path}")
+        settings = {"conditioning": self.live_skin.config.to_dict(), **self.recording_context}
+        recorder = RecordingWriter(
+            path, self.live_skin.info, {"skin_source": "live"}, settings, overwrite=overwrite
+        )
+        self.recorder = recorder
+        self.live_skin.recorder = recorder
+        self._message(f"recording to {recorder.path}")
+        return Path(recorder.path)
+
+    def stop_recording(self) -> Path | None:
+        """Close the recording (every frame so far is on disk); returns its path."""
+        recorder, self.recorder = self.recorder, None
+        self.live_skin.recorder = None
+        if recorder is None:
+            return None
+        recorder.close()
+        self._message(f"recording saved: {recorder.path}")
+        return Path(recorder.path)
 
     # -- the loop
 
@@ -406,6 +468,7 @@ class ControlSession:
         target = np.zeros(6)
         if gesture is not None and robot is not None:
             target = np.asarray(self.mapping.target_twist(gesture, robot.tcp), dtype=float)
+            target *= self.speed_scale
         twist = self.shaper.update(target, min(dt, self.settings.max_shaper_dt_s))
         self.state.action = f"twist {gesture}" if gesture is not None else "-"
         try:
@@ -423,7 +486,7 @@ class ControlSession:
         self.shaper.reset()
         self.state.twist = np.zeros(6)
         try:
-            self.safety.move_to_joints(q, self.settings.pose_speed_fraction)
+            self.safety.move_to_joints(q, self.settings.pose_speed_fraction * self.speed_scale)
         except (RobotError, ValueError) as exc:
             self._robot_failed(exc)
             return False
@@ -584,6 +647,7 @@ def open_session(
     settings: SessionSettings | None = None,
     on_message: Callable[[str], None] | None = None,
     on_tick: Callable[[ControlSession], None] | None = None,
+    source_options: dict[str, Any] | None = None,
 ) -> ControlSession:
     """Wire skin, conditioning, recogniser, arbiter, mapping, safety and robot.
 
@@ -592,7 +656,8 @@ def open_session(
     ``ur:HOST`` or a backend object; ``model``: a checkpoint directory (default: the
     shipped model) unless a ``recognizer`` object is given; ``pipeline_settings``: the
     execution rules (default: the model's recommended arbiter settings); ``record``: a
-    ``.wsrec`` path for the skin frames, predictions, commands and robot state.
+    ``.wsrec`` path for the skin frames, predictions, commands and robot state;
+    ``source_options``: spec options to add where the spec does not set them.
     """
     from wovenskin.live import LiveSkin
     from wovenskin.recognition.pipeline import (
@@ -610,26 +675,27 @@ def open_session(
     pose_store = PoseStore.load(poses)
     kind, _, options = parse_spec(skin)
     overrides = {"speed": 0} if fast_replay and kind == "replay" and "speed" not in options else {}
+    for key, value in (source_options or {}).items():
+        if key not in options:
+            overrides[key] = value
     source = open_source(skin, **overrides)
     backend = make_robot(robot) if isinstance(robot, str) else robot
     conditioning = conditioning_for_model(recognizer)
     recorder = None
+    context = {
+        "session": {
+            "robot": robot if isinstance(robot, str) else type(robot).__name__,
+            "model": str(getattr(recognizer, "checkpoint_dir", model)),
+            "mapping": str(mapping) if mapping is not None else "default",
+            "limits": _jsonable(asdict(limits or SafetyLimits())),
+        },
+    }
     if record is not None:
-        from dataclasses import asdict
-
         from wovenskin.recording.native import RecordingWriter
         from wovenskin.signal.config import ConditioningConfig
 
         used = conditioning or ConditioningConfig(sample_rate_hz=source.info.sample_rate_hz)
-        recorded_settings = {
-            "conditioning": used.to_dict(),
-            "session": {
-                "robot": robot if isinstance(robot, str) else type(robot).__name__,
-                "model": str(getattr(recognizer, "checkpoint_dir", model)),
-                "mapping": str(mapping) if mapping is not None else "default",
-                "limits": _jsonable(asdict(limits or SafetyLimits())),
-            },
-        }
+        recorded_settings = {"conditioning": used.to_dict(), **context}
         recorder = RecordingWriter(
             record, source.info, {"skin_source": skin}, recorded_settings, overwrite=overwrite
         )
@@ -640,7 +706,7 @@ def open_session(
     as_fast_as_read = str({**options, **overrides}.get("speed", "")) in ("0", "0.0")
     if as_fast_as_read and type(backend).step is not Robot.step:
         settings = replace(settings or SessionSettings(), wall_clock_stalls=False)
-    return ControlSession(
+    session = ControlSession(
         live_skin,
         pipeline,
         backend,
@@ -653,6 +719,8 @@ def open_session(
         on_message=on_message,
         on_tick=on_tick,
     )
+    session.recording_context = context
+    return session
 
 
 def _jsonable(value: Any) -> Any:

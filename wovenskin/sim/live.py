@@ -8,6 +8,13 @@ the frames that are due.  ``speed=1`` paces frames in real time, ``speed=2`` twi
 (guided recording, dashboards) and :meth:`current_label` / :attr:`events` give the ground
 truth of what the simulated person is doing.  With ``auto=0`` the person rests between
 requests and performs only what :meth:`perform` asks for.
+
+:meth:`set_touches` puts fingertips on the skin from outside (the dashboard's virtual
+skin): they go through the same :class:`~wovenskin.sim.physics.SkinModel` as the person's
+gestures, landing and lifting over a short force ramp and sliding smoothly between the
+positions given.  While such fingertips touch, the person's next performance waits.  The
+``lookahead`` option (seconds of frames rendered ahead of the wall clock) bounds how late
+an outside touch can show up; the dashboard uses a few tens of milliseconds.
 """
 
 from __future__ import annotations
@@ -15,14 +22,14 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.sim.motion import LEAD_S
-from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinModel, SkinPhysics
+from wovenskin.sim.person import Pad, Person
+from wovenskin.sim.physics import ContactTrack, SkinModel, SkinPhysics
 from wovenskin.sim.stream import INITIAL_IDLE_S, EventScheduler, StreamEvent, parse_request
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 from wovenskin.skin.layout import (
@@ -43,12 +50,50 @@ OPTIONS = (
     "idle",
     "invalid",
     "auto",
+    "lookahead",
 )
 """Keys understood by :meth:`SimulatedSkinSource.from_options`."""
 
 _IDLE_CHUNK_S = 0.05  # idle is rendered in small pieces so that requests start promptly
-_LOOKAHEAD_S = 0.25  # how far ahead of the wall clock frames are rendered
+_LOOKAHEAD_S = 0.25  # how far ahead of the wall clock frames are rendered (default)
 _UNPACED_BUFFER_S = 1.0  # speed=0: frames kept ready for the consumer
+_TOUCH_CHUNK_S = 0.01  # outside fingertips are rendered in pieces this long
+_TOUCH_RAMP_S = 0.02  # an outside fingertip reaches its force (or lifts) over this time
+MAX_TOUCH_FORCE_N = 10.0
+MAX_TOUCHES = 10
+_VIRTUAL_PAD = Pad(width_mm=9.0, growth_mm=3.0, aspect=1.15)
+
+
+@dataclass(frozen=True)
+class Fingertip:
+    """An outside fingertip: centre in mm (x right, y down from the sensing area's top-left
+    corner, as in :class:`~wovenskin.sim.physics.ContactTrack`) and normal force in N."""
+
+    x_mm: float
+    y_mm: float
+    force_n: float
+
+    def __post_init__(self) -> None:
+        values = (self.x_mm, self.y_mm, self.force_n)
+        if not all(isinstance(v, int | float) and np.isfinite(v) for v in values):
+            raise ValueError(f"fingertip values must be finite numbers, got {values}")
+        if self.force_n < 0:
+            raise ValueError(f"fingertip force must be >= 0 N, got {self.force_n}")
+
+
+@dataclass
+class _Finger:
+    x: float  # where the last rendered frame put it
+    y: float
+    force: float
+    target: Fingertip
+    rate: float = 0.0  # N per frame toward the target force
+
+    def aim(self, target: Fingertip, frames_per_ramp: float) -> None:
+        if target.force_n != self.target.force_n or self.rate == 0.0:
+            change = max(abs(target.force_n - self.force), 0.05)
+            self.rate = change / max(1.0, frames_per_ramp)
+        self.target = target
 
 
 @dataclass
@@ -73,11 +118,16 @@ class SimulatedSkinSource:
         sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
         max_batch: int = 200,
         autonomous: bool = True,
+        lookahead_s: float = _LOOKAHEAD_S,
     ) -> None:
         """``max_batch``: most frames one :meth:`poll` returns when ``speed=0``;
-        ``autonomous=False``: the person rests and acts only on :meth:`perform` requests."""
+        ``autonomous=False``: the person rests and acts only on :meth:`perform` requests;
+        ``lookahead_s``: seconds of frames rendered ahead of the wall clock."""
         if not np.isfinite(speed) or speed < 0:
             raise ValueError(f"sim speed must be >= 0 (0 = as fast as polled), got {speed}")
+        if not np.isfinite(lookahead_s) or not 0.005 <= lookahead_s <= 5.0:
+            raise ValueError(f"sim lookahead must be 0.005-5 s, got {lookahead_s}")
+        self.lookahead_s = float(lookahead_s)
         self.seed = int(seed) if seed is not None else int(np.random.SeedSequence().entropy % 2**31)
         self.speed = float(speed)
         self.autonomous = bool(autonomous)
@@ -120,6 +170,7 @@ class SimulatedSkinSource:
         self._paused = False
         self._clock_origin = 0.0  # wall time at which stream time 0 was (shifted by pauses)
         self._paused_at = 0.0
+        self._fingers: dict[int, _Finger] = {}  # outside fingertips (set_touches)
 
     # -- construction from a spec -------------------------------------------------------------
     @classmethod
@@ -180,6 +231,7 @@ class SimulatedSkinSource:
             idle_s=idle,
             invalid_fraction=number("invalid", float, 0.25),
             autonomous=bool(number("auto", int, 1)),
+            lookahead_s=number("lookahead", float, _LOOKAHEAD_S),
         )
 
     # -- SkinSource ---------------------------------------------------------------------------
@@ -263,6 +315,36 @@ class SimulatedSkinSource:
             self._requests.append(name)
             self._cond.notify_all()
 
+    def set_touches(self, touches: dict[int, Fingertip]) -> None:
+        """Put outside fingertips on the skin: ``{pointer id: Fingertip}``, replacing the last
+        call's.  Fingertips missing from ``touches`` lift off; new ones land.  Positions
+        may lie off the sensing area (nothing is sensed there); forces are capped at
+        :data:`MAX_TOUCH_FORCE_N`.  Raises ``ValueError`` for more than
+        :data:`MAX_TOUCHES` fingertips or for values that are not fingertips."""
+        if len(touches) > MAX_TOUCHES:
+            raise ValueError(f"at most {MAX_TOUCHES} fingertips, got {len(touches)}")
+        for key, tip in touches.items():
+            if not isinstance(tip, Fingertip):
+                raise ValueError(f"touch {key!r} is not a Fingertip: {tip!r}")
+        ramp = _TOUCH_RAMP_S * self._fs
+        with self._cond:
+            for key, finger in self._fingers.items():
+                if key not in touches:
+                    finger.aim(replace(finger.target, force_n=0.0), ramp)
+            for key, tip in touches.items():
+                tip = replace(tip, force_n=min(float(tip.force_n), MAX_TOUCH_FORCE_N))
+                finger = self._fingers.get(key)
+                if finger is None:
+                    finger = self._fingers[key] = _Finger(tip.x_mm, tip.y_mm, 0.0, tip)
+                finger.aim(tip, ramp)
+            self._cond.notify_all()
+
+    @property
+    def touching(self) -> bool:
+        """Whether outside fingertips are on the skin (or still lifting off)."""
+        with self._cond:
+            return bool(self._fingers)
+
     @property
     def events(self) -> list[StreamEvent]:
         """Events that have begun by the last delivered frame (stream clock)."""
@@ -298,7 +380,8 @@ class SimulatedSkinSource:
     def _render_target(self) -> int:
         if self.speed == 0:
             return self._delivered + int(_UNPACED_BUFFER_S * self._fs)
-        return self._due_frames(time.monotonic()) + int(_LOOKAHEAD_S * self.speed * self._fs)
+        ahead = max(1, int(self.lookahead_s * self.speed * self._fs))
+        return self._due_frames(time.monotonic()) + ahead
 
     # -- producer thread --------------------------------------------------------------------------
     def _produce(self) -> None:
@@ -326,6 +409,18 @@ class SimulatedSkinSource:
         fs = self._fs
         lead = int(round(LEAD_S * fs))
         upcoming = self._upcoming
+        chunk = int(round(min(_IDLE_CHUNK_S, self.lookahead_s) * fs))
+        with self._cond:
+            touching = bool(self._fingers)
+        if touching:  # outside fingertips: the person waits until they have lifted
+            if request is not None:
+                with self._cond:
+                    self._requests.appendleft(request)
+            frames = self._render_touches(max(1, int(round(_TOUCH_CHUNK_S * fs))))
+            gap = int(round(self._scheduler.idle_s[0] * fs))
+            upcoming.contact_frame = max(upcoming.contact_frame, self._rendered + lead + gap)
+            self._earliest_contact = max(self._earliest_contact, upcoming.contact_frame)
+            return frames
         if request is not None:
             if upcoming.request is not None:
                 with self._cond:
@@ -334,10 +429,10 @@ class SimulatedSkinSource:
                 upcoming.request = request
                 upcoming.contact_frame = max(self._earliest_contact, self._rendered + lead)
         if not self.autonomous and upcoming.request is None:
-            return self._model.render_idle(int(round(_IDLE_CHUNK_S * fs)))
+            return self._model.render_idle(max(1, chunk))
         start = upcoming.contact_frame - lead
         if self._rendered < start:
-            n = min(start - self._rendered, int(round(_IDLE_CHUNK_S * fs)))
+            n = min(start - self._rendered, max(1, chunk))
             return self._model.render_idle(n)
         performance = self._scheduler.next_performance(upcoming.request)
         offset = self._rendered / fs  # the performance's frame 0 on the stream clock
@@ -356,3 +451,22 @@ class SimulatedSkinSource:
             self._upcoming = _Upcoming(None, end_frame + gap)
             self._earliest_contact = end_frame + max(min_gap, 2 * lead)
         return frames
+
+    def _render_touches(self, n: int) -> np.ndarray:
+        """``n`` frames of the outside fingertips: each slides in a straight line to its
+        newest position and ramps its force toward the newest force; lifted ones go."""
+        k = np.arange(1, n + 1)
+        tracks = []
+        with self._cond:
+            for key, finger in list(self._fingers.items()):
+                target = finger.target
+                x = finger.x + (target.x_mm - finger.x) * k / n
+                y = finger.y + (target.y_mm - finger.y) * k / n
+                reach = finger.rate * k
+                force = finger.force + np.clip(target.force_n - finger.force, -reach, reach)
+                finger.x, finger.y, finger.force = float(x[-1]), float(y[-1]), float(force[-1])
+                if target.force_n == 0.0 and finger.force <= 0.0:
+                    del self._fingers[key]
+                major, minor = _VIRTUAL_PAD.axes_mm(force)
+                tracks.append(ContactTrack(x, y, force, major, minor, kind="fingertip"))
+        return self._model.render(tracks, n)

@@ -105,3 +105,12 @@ def jacobian(q: np.ndarray) -> np.ndarray:
         result[:3, i] = np.cross(axis, tcp - frames[i][:3, 3])
         result[3:, i] = axis
     return result
+
+
+# Where the skin sits on the end link (the MJCF's "skin_patch" site), in that site's frame:
+# the skin's "up" (toward row 0, GESTURES.md) and "right" (toward higher columns) axes.
+# The site is 140 mm along its x (the skin's 10 rows x 14 mm) and 100 mm along its z, the
+# tool axis (10 columns x 10 mm); its y axis is the outward normal.
+SKIN_SITE = "skin_patch"
+SKIN_UP_AXIS = np.array([1.0, 0.0, 0.0])
+SKIN_RIGHT_AXIS = np.array([0.0, 0.0, 1.0])

@@ -1,0 +1,328 @@
+"""The dashboard's engine: a control session on its own thread, fed by the page.
+
+:class:`DashboardRunner` opens a session (the same :func:`~wovenskin.control.session.
+open_session` wiring as ``wovenskin run``), steps it on a thread at the skin's full rate
+(200 Hz recognition and control) and, at the page's rate (30-60 Hz), stores the newest
+:func:`~wovenskin.ui.dashboard.snapshot.build_snapshot` for the server to send: latest
+only, so a slow browser never slows control.  Page commands (:meth:`submit`) are queued
+and carried out on the session thread between steps; virtual touches (:meth:`touch`) go
+straight to the simulated skin's physics, never to the recogniser or the robot.
+
+A command that cannot be carried out (a bad value, a robot that refuses, a skin that is
+not simulated) is reported as one line in the page's messages; it never stops the loop.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from wovenskin.control.session import ControlSession
+from wovenskin.gestures import CLASS_NAMES
+from wovenskin.live import RateMeter
+from wovenskin.skin.source import parse_spec
+from wovenskin.ui.dashboard.scene import ArmScene
+from wovenskin.ui.dashboard.snapshot import Timeline, TimelineEntry, build_snapshot
+
+SessionOpener = Callable[[str, str], ControlSession]
+"""``opener(skin_spec, robot_spec)`` -> an unstarted session."""
+
+COMMANDS = (
+    "stop",
+    "resume",
+    "calibrate",
+    "home",
+    "initial",
+    "set_initial",
+    "record",
+    "speed",
+    "perform",
+    "autoplay",
+    "switch",
+)
+DEFAULT_SIM_LOOKAHEAD = "0.03"  # s of frames the simulated skin renders ahead (touch latency)
+
+
+@dataclass
+class TouchLatency:
+    """Wall-clock times from the first virtual contact to the command and to motion."""
+
+    touch_wall: float | None = None
+    command_s: float | None = None
+    motion_s: float | None = None
+    command: str | None = None
+
+    def to_dict(self) -> dict:
+        def ms(v: float | None) -> float | None:
+            return None if v is None else round(v * 1000.0, 1)
+
+        return {
+            "touch_to_command_ms": ms(self.command_s),
+            "touch_to_motion_ms": ms(self.motion_s),
+            "command": self.command,
+        }
+
+
+class DashboardRunner:
+    """Runs one session for the page (see the module docstring)."""
+
+    def __init__(
+        self,
+        opener: SessionOpener,
+        skin: str,
+        robot: str,
+        *,
+        ui_rate_hz: float = 30.0,
+        record_dir: str | Path = "recordings",
+    ) -> None:
+        if not 1.0 <= ui_rate_hz <= 120.0:
+            raise ValueError(f"page update rate must be 1-120 Hz, got {ui_rate_hz}")
+        self._opener = opener
+        self.skin_spec = skin
+        self.robot_spec = robot
+        self.ui_rate_hz = float(ui_rate_hz)
+        self.record_dir = Path(record_dir)
+        self.session: ControlSession | None = None
+        self.scene: ArmScene | None = None
+        self.timeline = Timeline()
+        self.latency = TouchLatency()
+        self._commands: queue.Queue[dict] = queue.Queue()
+        self._lock = threading.Lock()
+        self._snapshot: dict | None = None
+        self._seq = 0
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._last_snapshot_wall = 0.0
+        self._gesture: str | None = None
+        self._stops_seen = 0
+        self._touching = False
+        self._loop_rate = RateMeter()
+        self._ui_rate = RateMeter()
+        self.failure: str = ""
+
+    # -- lifecycle
+
+    def start(self) -> None:
+        """Open and start the session (errors propagate: nothing runs), then the thread."""
+        self.session = self._open(self.skin_spec, self.robot_spec)
+        self._thread = threading.Thread(target=self._loop, name="dashboard-session", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        if self.session is not None:
+            self.session.close()
+            self.session = None
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    # -- what the server calls (any thread)
+
+    def latest(self) -> dict | None:
+        with self._lock:
+            return self._snapshot
+
+    def describe(self) -> dict:
+        """What the page needs once: classes, scene shapes, commands, gestures to perform."""
+        return {
+            "type": "scene",
+            "classes": list(CLASS_NAMES),
+            "gestures": [name for name in CLASS_NAMES if name != "invalid"],
+            "scene": self.scene.describe() if self.scene is not None else None,
+            "ui_rate_hz": self.ui_rate_hz,
+            "skin": self.skin_spec,
+            "robot": self.robot_spec,
+        }
+
+    def submit(self, command: dict) -> None:
+        """Queue a page command (``{"cmd": name, ...}``) for the session thread."""
+        if not isinstance(command, dict) or command.get("cmd") not in COMMANDS:
+            raise ValueError(f"unknown dashboard command: {str(command)[:80]}")
+        self._commands.put(command)
+
+    def touch(self, touches: dict[int, Any]) -> None:
+        """Put virtual fingertips on the simulated skin (``{id: Fingertip}``)."""
+        source = self._sim_source()
+        if source is None:
+            raise ValueError("the virtual skin needs the simulated skin (skin source sim)")
+        if touches and not self._touching:
+            self.latency = TouchLatency(touch_wall=time.monotonic())
+        self._touching = bool(touches)
+        source.set_touches(touches)
+
+    # -- the session thread
+
+    def _open(self, skin: str, robot: str) -> ControlSession:
+        kind, _, options = parse_spec(skin)
+        if kind == "sim" and "lookahead" not in options:
+            skin = f"{skin}{',' if ':' in skin else ':'}lookahead={DEFAULT_SIM_LOOKAHEAD}"
+        session = self._opener(skin, robot)
+        try:
+            session.start()
+        except Exception:
+            session.close()
+            raise
+        self.skin_spec, self.robot_spec = skin, robot
+        self.scene = ArmScene.for_robot(session.robot)
+        self._gesture, self._stops_seen = None, 0
+        return session
+
+    def _loop(self) -> None:
+        while not self._stop.is_set():
+            session = self.session
+            assert session is not None
+            self._drain_commands()
+            try:
+                ticks = session.step()
+            except Exception as exc:  # keep the page alive: report, stop the arm, go on
+                self.failure = f"session step failed: {type(exc).__name__}: {exc}"
+                session.emergency_stop(self.failure)
+                session.state.messages.append(f"error: {self.failure}")
+                time.sleep(0.05)
+                ticks = 0
+            now = time.monotonic()
+            if ticks:
+                self._loop_rate.add(ticks, now)
+            self._watch(session, now)
+            if now - self._last_snapshot_wall >= 1.0 / self.ui_rate_hz:
+                self._last_snapshot_wall = now
+                try:
+                    self._publish(session, now)
+                except Exception as exc:  # a view bug must not stop control: say it once
+                    if not self.failure:
+                        self.failure = f"page update failed: {type(exc).__name__}: {exc}"
+                        session.state.messages.append(f"error: {self.failure}")
+
+    def _watch(self, session: ControlSession, now: float) -> None:
+        state = session.state
+        if state.gesture != self._gesture:
+            self._gesture = state.gesture
+            self.timeline.add(TimelineEntry(session.now, "command", state.gesture))
+            lat = self.latency
+            if state.gesture and lat.touch_wall is not None and lat.command_s is None:
+                lat.command_s, lat.command = now - lat.touch_wall, state.gesture
+        stops = session.safety.stops
+        for stop in stops[self._stops_seen :]:
+            self.timeline.add(TimelineEntry(stop.t, "stop", stop.source, stop.reason))
+        self._stops_seen = len(stops)
+        lat = self.latency
+        robot = state.robot
+        moved = robot is not None and robot.tcp_speed > 1e-3
+        if lat.command_s is not None and lat.motion_s is None and moved:
+            lat.motion_s = now - lat.touch_wall
+
+    def _publish(self, session: ControlSession, now: float) -> None:
+        self._ui_rate.add(1, now)
+        self._seq += 1
+        extras = {
+            "rates": {
+                "control_hz": round(self._loop_rate.rate(now), 1),
+                "ui_hz": round(self._ui_rate.rate(now), 1),
+            },
+            "latency": self.latency.to_dict(),
+            "autoplay": self._autoplay(),
+            "failure": self.failure,
+        }
+        snapshot = build_snapshot(
+            session,
+            seq=self._seq,
+            source_spec=self.skin_spec,
+            robot_spec=self.robot_spec,
+            scene=self.scene,
+            timeline=self.timeline,
+            virtual=self._sim_source() is not None,
+            extras=extras,
+        )
+        with self._lock:
+            self._snapshot = snapshot
+
+    def _drain_commands(self) -> None:
+        while True:
+            try:
+                command = self._commands.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                self._carry_out(command)
+            except Exception as exc:  # one line in the page; the loop goes on
+                line = " ".join(f"{command.get('cmd')}: {exc}".split())
+                if self.session is not None:
+                    self.session.state.messages.append(f"error: {line}")
+
+    def _carry_out(self, command: dict) -> None:
+        session = self.session
+        assert session is not None
+        name = command["cmd"]
+        if name == "stop":
+            session.emergency_stop("stop button")
+        elif name == "resume":
+            session.resume()
+        elif name == "calibrate":
+            session.live_skin.recalibrate()
+            session.state.messages.append("recalibrating: keep hands off the skin")
+        elif name in ("home", "initial"):
+            session.go_to_pose(name)
+        elif name == "set_initial":
+            session.store_pose("initial")
+        elif name == "record":
+            if command.get("on", not session.recording):
+                if not session.recording:
+                    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+                    self.record_dir.mkdir(parents=True, exist_ok=True)
+                    session.start_recording(self.record_dir / f"dashboard-{stamp}.wsrec")
+            else:
+                session.stop_recording()
+        elif name == "speed":
+            session.set_speed_scale(float(command.get("value", 1.0)))
+        elif name == "perform":
+            source = self._sim_source()
+            if source is None:
+                raise ValueError("only the simulated skin can perform gestures")
+            source.perform(str(command.get("gesture", "")))
+            session.state.messages.append(f"the simulated person performs {command['gesture']}")
+        elif name == "autoplay":
+            source = self._sim_source()
+            if source is None:
+                raise ValueError("only the simulated skin has a simulated person")
+            source.autonomous = bool(command.get("on", True))
+        elif name == "switch":
+            self._switch(
+                str(command.get("skin") or self.skin_spec),
+                str(command.get("robot") or self.robot_spec),
+            )
+
+    def _switch(self, skin: str, robot: str) -> None:
+        """Close this session and open one with another skin or robot; if that fails the
+        old one is reopened, so the page never ends up with nothing."""
+        old = self.session
+        assert old is not None
+        old_skin, old_robot = self.skin_spec, self.robot_spec
+        speed = old.speed_scale
+        old.close()
+        try:
+            self.session = self._open(skin, robot)
+        except Exception as exc:
+            self.session = self._open(old_skin, old_robot)
+            raise ValueError(f"could not open skin {skin!r} with robot {robot!r}: {exc}") from exc
+        self.session.speed_scale = speed
+        self.session.state.messages.append(f"now: skin {self.skin_spec}, robot {self.robot_spec}")
+
+    def _sim_source(self) -> Any:
+        from wovenskin.sim.live import SimulatedSkinSource
+
+        source = self.session.live_skin.source if self.session is not None else None
+        return source if isinstance(source, SimulatedSkinSource) else None
+
+    def _autoplay(self) -> bool | None:
+        source = self._sim_source()
+        return None if source is None else bool(source.autonomous)

@@ -1,0 +1,208 @@
+"""The dashboard's web server: the page, its static files and one WebSocket per browser.
+
+:func:`create_app` builds the FastAPI app around a :class:`~.runner.DashboardRunner`:
+``GET /`` is the page, ``/static`` its scripts (three.js is vendored in the package: the
+page never loads anything from the internet), ``/ws`` the WebSocket.  On the socket the
+server first sends the scene (``{"type": "scene"}``), then the runner's newest state at the
+page rate (latest only: a slow browser skips frames, the session never waits for it).  The
+browser sends ``{"type": "command", "cmd": ...}`` and ``{"type": "touch", "touches":
+[{"id", "x_mm", "y_mm", "force_n"}, ...]}``; a bad message gets one ``{"type": "error"}``
+line back and changes nothing.
+
+Bound to a loopback address the server is open to this machine's users; bound elsewhere it
+requires a token (``?token=`` on the page's address, then a cookie), compared in constant
+time, on every request and socket.  :func:`serve` runs uvicorn until Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import hmac
+import json
+import secrets
+from collections.abc import Callable
+from importlib import resources
+from pathlib import Path
+
+from fastapi import FastAPI, Request, WebSocket, WebSocketDisconnect
+from fastapi.responses import HTMLResponse, JSONResponse, PlainTextResponse
+from fastapi.staticfiles import StaticFiles
+
+from wovenskin.sim.live import Fingertip
+from wovenskin.ui.dashboard.runner import DashboardRunner
+
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+COOKIE = "wovenskin_token"
+MAX_MESSAGE_BYTES = 16_384
+
+
+def static_dir() -> Path:
+    return Path(str(resources.files("wovenskin.ui.dashboard").joinpath("static")))
+
+
+def needs_token(host: str) -> bool:
+    return host not in LOOPBACK
+
+
+def new_token() -> str:
+    return secrets.token_urlsafe(18)
+
+
+def _token_ok(expected: str | None, given: str | None) -> bool:
+    if expected is None:
+        return True
+    return given is not None and hmac.compare_digest(expected.encode(), given.encode())
+
+
+def parse_touches(items: object) -> dict[int, Fingertip]:
+    """``[{"id", "x_mm", "y_mm", "force_n"}, ...]`` -> ``{id: Fingertip}``; ValueError if bad."""
+    if not isinstance(items, list):
+        raise ValueError("touches must be a list")
+    touches: dict[int, Fingertip] = {}
+    for item in items:
+        if not isinstance(item, dict):
+            raise ValueError("each touch must be an object")
+        try:
+            key = int(item["id"])
+            values = [float(item[k]) for k in ("x_mm", "y_mm", "force_n")]
+        except (KeyError, TypeError, ValueError):
+            raise ValueError("a touch needs numeric id, x_mm, y_mm and force_n") from None
+        touches[key] = Fingertip(*values)
+    return touches
+
+
+def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
+    """The app serving ``runner``; ``token`` (None: no check) guards every request."""
+    app = FastAPI(title="wovenskin dashboard", docs_url=None, redoc_url=None, openapi_url=None)
+    page = (static_dir() / "index.html").read_text(encoding="utf-8")
+
+    @app.middleware("http")
+    async def check_token(request: Request, call_next):
+        given = request.query_params.get("token") or request.cookies.get(COOKIE)
+        if not _token_ok(token, given):
+            return PlainTextResponse(
+                "a token is required: open the address printed at start", status_code=401
+            )
+        response = await call_next(request)
+        if token is not None and request.query_params.get("token"):
+            response.set_cookie(COOKIE, token, httponly=True, samesite="strict")
+        return response
+
+    @app.get("/", response_class=HTMLResponse)
+    async def index() -> str:
+        return page
+
+    @app.get("/api/state")
+    async def state() -> JSONResponse:
+        return JSONResponse(runner.latest() or {"type": "state", "seq": 0})
+
+    app.mount("/static", StaticFiles(directory=static_dir()), name="static")
+
+    @app.websocket("/ws")
+    async def socket(ws: WebSocket) -> None:
+        given = ws.query_params.get("token") or ws.cookies.get(COOKIE)
+        if not _token_ok(token, given):
+            await ws.close(code=4401)
+            return
+        await ws.accept()
+        replies: asyncio.Queue[str] = asyncio.Queue(maxsize=64)
+        sender = asyncio.create_task(_send_states(ws, runner, replies))
+        try:
+            while True:
+                text = await ws.receive_text()
+                reply = _handle(runner, text)
+                if reply is not None and not replies.full():
+                    replies.put_nowait(json.dumps(reply))
+        except WebSocketDisconnect:
+            pass
+        finally:
+            sender.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await sender
+
+    return app
+
+
+async def _send_states(ws: WebSocket, runner: DashboardRunner, replies: asyncio.Queue) -> None:
+    """The scene, then the newest state at the page rate (never one twice, none queued),
+    and the replies to the browser's messages; the one task that writes to ``ws``."""
+    await ws.send_text(json.dumps(runner.describe()))
+    sent = -1
+    scene_robot = runner.robot_spec
+    period = 1.0 / runner.ui_rate_hz
+    while True:
+        while not replies.empty():
+            await ws.send_text(replies.get_nowait())
+        snapshot = runner.latest()
+        if snapshot is not None and snapshot["seq"] != sent:
+            if runner.robot_spec != scene_robot:  # another robot: the page needs its shapes
+                scene_robot = runner.robot_spec
+                await ws.send_text(json.dumps(runner.describe()))
+            sent = snapshot["seq"]
+            await ws.send_text(json.dumps(snapshot, allow_nan=False))
+        await asyncio.sleep(period)
+
+
+def _handle(runner: DashboardRunner, text: str) -> dict | None:
+    """Carry out one browser message; returns an error reply or None."""
+    if len(text) > MAX_MESSAGE_BYTES:
+        return {"type": "error", "message": "message too long"}
+    try:
+        message = json.loads(text)
+        if not isinstance(message, dict):
+            raise ValueError("a message must be a JSON object")
+        kind = message.get("type")
+        if kind == "touch":
+            runner.touch(parse_touches(message.get("touches")))
+        elif kind == "command":
+            runner.submit({k: v for k, v in message.items() if k != "type"})
+        elif kind == "ping":
+            return {"type": "pong", "t": message.get("t")}
+        else:
+            raise ValueError(f"unknown message type {kind!r}")
+    except (ValueError, TypeError) as exc:
+        return {"type": "error", "message": " ".join(str(exc).split())[:200]}
+    return None
+
+
+def serve(
+    runner: DashboardRunner,
+    host: str = "127.0.0.1",
+    port: int = 8000,
+    token: str | None = None,
+    on_ready: Callable[[str], None] | None = None,
+    seconds: float | None = None,
+) -> None:
+    """Start ``runner``, serve the page until Ctrl-C (or ``seconds`` pass), then stop and
+    close everything.  ``token`` is required when ``host`` is not loopback (one is made
+    when not given); ``on_ready(url)`` is called once the socket listens."""
+    import uvicorn
+
+    if needs_token(host) and token is None:
+        token = new_token()
+    app = create_app(runner, token)
+    config = uvicorn.Config(app, host=host, port=port, log_level="warning", ws_max_size=65536)
+    server = uvicorn.Server(config)
+    shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
+    url = f"http://{shown}:{port}/" + (f"?token={token}" if token else "")
+
+    async def main() -> None:
+        task = asyncio.create_task(server.serve())
+        while not server.started and not task.done():
+            await asyncio.sleep(0.02)
+        if server.started and on_ready is not None:
+            on_ready(url)
+        if seconds is not None:
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(asyncio.shield(task), seconds)
+            server.should_exit = True
+        await task
+
+    runner.start()
+    try:
+        asyncio.run(main())
+    except KeyboardInterrupt:
+        pass
+    finally:
+        runner.close()

@@ -1,0 +1,171 @@
+"""One frame of the dashboard: a running session's state as a JSON-ready dict.
+
+:func:`build_snapshot` reads a :class:`~wovenskin.control.session.ControlSession` (its
+skin, recogniser, safety layer and robot state) and the runner's own bookkeeping
+(:class:`Timeline`, latencies) and returns plain lists, numbers and strings.  It runs on the
+session's thread, so everything it reads is consistent; the server only serialises it.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from wovenskin.ui.dashboard.scene import ArmScene
+
+SIGNAL_FULL_SCALE = 0.3  # relative change drawn at the brightest colour (as the terminal view)
+TIMELINE_S = 30.0  # how much history the page's timeline shows
+
+
+@dataclass
+class TimelineEntry:
+    t: float  # session time, s
+    kind: str  # "command" (name None: the command ended) or "stop"
+    name: str | None
+    detail: str = ""
+
+    def to_dict(self) -> dict:
+        return {"t": round(self.t, 3), "kind": self.kind, "name": self.name, "detail": self.detail}
+
+
+@dataclass
+class Timeline:
+    """Command changes and stops of the last :data:`TIMELINE_S` seconds."""
+
+    entries: deque = field(default_factory=lambda: deque(maxlen=400))
+
+    def add(self, entry: TimelineEntry) -> None:
+        self.entries.append(entry)
+
+    def recent(self, now: float) -> list[dict]:
+        return [e.to_dict() for e in self.entries if e.t >= now - TIMELINE_S]
+
+
+def _floats(values: Any, digits: int = 4) -> list[float]:
+    array = np.nan_to_num(np.asarray(values, dtype=np.float64).reshape(-1), nan=0.0)
+    return [round(float(v), digits) for v in array]
+
+
+def skin_part(session: Any, source_spec: str, virtual: bool) -> dict:
+    """The heatmap, contacts and stream health."""
+    live = session.live_skin
+    state = live.state
+    info = live.info
+    stats = live.stats()
+    rows, cols = info.rows, info.cols
+    signal = state.signal if state.signal is not None else np.zeros((rows, cols))
+    contacts = [
+        {
+            "row": round(float(c.row), 3),
+            "col": round(float(c.col), 3),
+            "size": int(c.size),
+            "peak": round(float(c.peak), 4),
+        }
+        for c in state.contacts
+    ]
+    return {
+        "rows": rows,
+        "cols": cols,
+        "row_pitch_mm": info.row_pitch_mm,
+        "col_pitch_mm": info.col_pitch_mm,
+        "signal": _floats(signal),
+        "full_scale": SIGNAL_FULL_SCALE,
+        "contacts": contacts,
+        "fps": round(float(state.frame_rate_hz), 1),
+        "calibrating": bool(state.calibrating),
+        "stalled": bool(state.stalled or stats.stalled),
+        "ended": bool(state.ended),
+        "source": source_spec,
+        "virtual": virtual,
+        "counters": {
+            "good": stats.good_frames,
+            "bad": stats.bad_frames,
+            "dropped": stats.dropped_frames,
+            "reconnects": stats.reconnects,
+            "session_errors": session.state.errors,
+        },
+        "last_error": stats.last_error or session.state.last_error,
+    }
+
+
+def recognition_part(session: Any) -> dict:
+    state = session.state
+    probabilities = state.probabilities
+    classes = list(state.class_names)
+    p = _floats(probabilities, 3) if probabilities is not None else [0.0] * len(classes)
+    since = state.gesture_since
+    return {
+        "classes": classes,
+        "p": p,
+        "top": [state.top[0], round(float(state.top[1]), 3)],
+        "command": state.gesture,
+        "command_for_s": round(session.now - since, 2) if state.gesture and since else 0.0,
+        "action": state.action,
+    }
+
+
+def robot_part(session: Any, robot_spec: str, scene: ArmScene | None) -> dict:
+    state = session.state.robot
+    out: dict[str, Any] = {"spec": robot_spec, "connected": state is not None}
+    if state is None:
+        return out
+    rotation = state.tcp.rotation()
+    out.update(
+        q=_floats(state.q, 5),
+        tcp={
+            "pos": _floats(state.tcp.position, 5),
+            "quat": _floats(state.tcp.quat, 5),
+            "x_axis": _floats(rotation[:, 0], 4),
+            "z_axis": _floats(rotation[:, 2], 4),
+        },
+        tcp_speed=round(float(state.tcp_speed), 4),
+        twist=_floats(session.state.twist, 4),
+        moving=bool(state.moving),
+        fault=state.fault,
+    )
+    if scene is not None:
+        try:
+            out["geoms"] = scene.poses(state.q)
+            out["skin_corners"] = scene.skin_corners(session.live_skin.info.layout)
+        except ValueError:
+            pass
+    return out
+
+
+def build_snapshot(
+    session: Any,
+    *,
+    seq: int,
+    source_spec: str,
+    robot_spec: str,
+    scene: ArmScene | None,
+    timeline: Timeline,
+    virtual: bool,
+    extras: dict,
+) -> dict:
+    """The whole page state (see the module docstring)."""
+    safety = session.safety
+    stops = [
+        {"t": round(s.t, 3), "source": s.source, "reason": s.reason} for s in safety.stops[-5:]
+    ]
+    return {
+        "type": "state",
+        "seq": seq,
+        "t": round(float(session.now), 3),
+        "skin": skin_part(session, source_spec, virtual),
+        "recognition": recognition_part(session),
+        "robot": robot_part(session, robot_spec, scene),
+        "safety": {
+            "stopped": bool(safety.stopped),
+            "user_stopped": bool(session.user_stopped),
+            "stops": stops,
+        },
+        "timeline": timeline.recent(float(session.now)),
+        "messages": list(session.state.messages),
+        "recording": str(session.recorder.path) if session.recorder is not None else None,
+        "speed_scale": session.speed_scale,
+        **extras,
+    }

@@ -1,0 +1,478 @@
+// The wovenskin dashboard page: one WebSocket, a virtual skin, a three.js arm, controls.
+// The server sends {"type": "scene"} once and {"type": "state"} at the page rate; the page
+// sends touches and commands. Nothing here decides a command: touches go to the simulated
+// skin's physics on the server and through the same recogniser and safety layer as a real skin.
+import * as THREE from "./vendor/three.min.js";
+
+const $ = (id) => document.getElementById(id);
+const params = new URLSearchParams(location.search);
+const token = params.get("token");
+
+const page = {
+  scene: null, state: null, socket: null, received: 0, receivedAt: [], errors: [],
+  sent: 0, connected: false,
+};
+window.wovenskin = page; // for tests and the browser console
+
+// ------------------------------------------------------------------ socket
+function connect() {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  const url = `${scheme}://${location.host}/ws${token ? `?token=${encodeURIComponent(token)}` : ""}`;
+  const ws = new WebSocket(url);
+  page.socket = ws;
+  ws.onopen = () => { page.connected = true; setPill($("link"), "live", "ok"); };
+  ws.onclose = () => {
+    page.connected = false;
+    setPill($("link"), "disconnected: retrying", "bad");
+    setTimeout(connect, 1000);
+  };
+  ws.onmessage = (event) => {
+    const message = JSON.parse(event.data);
+    if (message.type === "scene") onScene(message);
+    else if (message.type === "state") onState(message);
+    else if (message.type === "error") { page.errors.push(message.message); addLocalMessage(`error: ${message.message}`); }
+  };
+}
+
+function send(message) {
+  if (page.socket && page.socket.readyState === WebSocket.OPEN) {
+    page.socket.send(JSON.stringify(message));
+    page.sent += 1;
+  }
+}
+const command = (cmd, extra = {}) => send({ type: "command", cmd, ...extra });
+
+function setPill(el, text, kind) { el.textContent = text; el.className = `pill ${kind}`; }
+
+const localMessages = [];
+function addLocalMessage(text) { localMessages.push(text); if (localMessages.length > 5) localMessages.shift(); }
+
+// ------------------------------------------------------------------ scene and state
+function onScene(message) {
+  page.scene = message;
+  $("sources").textContent = `skin ${message.skin} · robot ${message.robot}`;
+  $("skin-spec").value = message.skin;
+  $("robot-spec").value = message.robot;
+  buildPerformButtons(message.gestures);
+  buildBars(message.classes);
+  arm.build(message.scene);
+}
+
+function onState(state) {
+  page.state = state;
+  page.received += 1;
+  const now = performance.now();
+  page.receivedAt.push(now);
+  while (page.receivedAt.length && now - page.receivedAt[0] > 2000) page.receivedAt.shift();
+  updateHeader(state);
+  updateSkin(state.skin);
+  updateRecognition(state);
+  updateControls(state);
+  arm.update(state.robot);
+  drawTimeline(state);
+  updateMessages(state.messages);
+}
+
+function pageRate() {
+  const stamps = page.receivedAt;
+  if (stamps.length < 2) return 0;
+  return (stamps.length - 1) / ((stamps[stamps.length - 1] - stamps[0]) / 1000);
+}
+
+function updateHeader(state) {
+  const r = state.rates || {};
+  $("rates").textContent = `control ${r.control_hz ?? "-"} Hz · page ${pageRate().toFixed(0)} Hz`;
+  const s = state.safety;
+  if (s.user_stopped) setPill($("safety"), "STOPPED (resume to move)", "bad");
+  else if (s.stopped) setPill($("safety"), `stopped: ${s.stops.length ? s.stops[s.stops.length - 1].reason : ""}`, "warn");
+  else setPill($("safety"), "running", "ok");
+  $("resume").style.display = s.stopped ? "" : "none";
+}
+
+// ------------------------------------------------------------------ the skin
+const skinCanvas = $("skin");
+const skinCtx = skinCanvas.getContext("2d");
+const skinTexture = document.createElement("canvas"); // the heatmap alone, for the 3D patch
+const skinTextureCtx = skinTexture.getContext("2d");
+let layout = { rows: 10, cols: 10, row_pitch_mm: 14, col_pitch_mm: 10 };
+
+function colour(v) { // 0..1 -> a perceptual dark-to-bright ramp (inferno-like)
+  const x = Math.max(0, Math.min(1, v));
+  const stops = [[0, 0, 4], [40, 11, 84], [101, 21, 110], [159, 42, 99], [212, 72, 66],
+    [245, 125, 21], [250, 193, 39], [252, 255, 164]];
+  const f = x * (stops.length - 1), i = Math.min(stops.length - 2, Math.floor(f)), t = f - i;
+  const a = stops[i], b = stops[i + 1];
+  return `rgb(${a.map((c, k) => Math.round(c + (b[k] - c) * t)).join(",")})`;
+}
+
+function sizeSkinCanvas() {
+  const widthMm = layout.cols * layout.col_pitch_mm, heightMm = layout.rows * layout.row_pitch_mm;
+  const cssWidth = skinCanvas.clientWidth || 280;
+  skinCanvas.style.height = `${(cssWidth * heightMm) / widthMm}px`;
+  const dpr = window.devicePixelRatio || 1;
+  skinCanvas.width = Math.round(cssWidth * dpr);
+  skinCanvas.height = Math.round(((cssWidth * heightMm) / widthMm) * dpr);
+}
+
+function updateSkin(skin) {
+  if (skin.rows !== layout.rows || skin.cols !== layout.cols ||
+      skin.row_pitch_mm !== layout.row_pitch_mm || skin.col_pitch_mm !== layout.col_pitch_mm) {
+    layout = { rows: skin.rows, cols: skin.cols, row_pitch_mm: skin.row_pitch_mm, col_pitch_mm: skin.col_pitch_mm };
+    sizeSkinCanvas();
+  }
+  const { rows, cols } = skin;
+  const W = skinCanvas.width, H = skinCanvas.height, cw = W / cols, ch = H / rows;
+  skinTexture.width = cols; skinTexture.height = rows;
+  for (let r = 0; r < rows; r++) {
+    for (let c = 0; c < cols; c++) {
+      const v = Math.sqrt(Math.max(0, skin.signal[r * cols + c]) / skin.full_scale); // gamma: light touches show
+      skinCtx.fillStyle = colour(v);
+      skinCtx.fillRect(c * cw, r * ch, cw + 0.5, ch + 0.5);
+      skinTextureCtx.fillStyle = colour(v);
+      skinTextureCtx.fillRect(c, r, 1, 1);
+    }
+  }
+  skinCtx.strokeStyle = "rgba(255,255,255,0.06)";
+  for (let c = 1; c < cols; c++) { skinCtx.beginPath(); skinCtx.moveTo(c * cw, 0); skinCtx.lineTo(c * cw, H); skinCtx.stroke(); }
+  for (let r = 1; r < rows; r++) { skinCtx.beginPath(); skinCtx.moveTo(0, r * ch); skinCtx.lineTo(W, r * ch); skinCtx.stroke(); }
+  for (const c of skin.contacts) { // centroids in channel units, channel centres at integers
+    const x = (c.col + 0.5) * cw, y = (c.row + 0.5) * ch;
+    const radius = Math.max(4, Math.sqrt(c.size) * Math.min(cw, ch) * 0.55);
+    skinCtx.strokeStyle = "#7ee0ff"; skinCtx.lineWidth = 2 * (window.devicePixelRatio || 1);
+    skinCtx.beginPath(); skinCtx.arc(x, y, radius, 0, 2 * Math.PI); skinCtx.stroke();
+    skinCtx.fillStyle = "#7ee0ff"; skinCtx.beginPath(); skinCtx.arc(x, y, 3, 0, 2 * Math.PI); skinCtx.fill();
+  }
+  const mm = mmToCanvas();
+  for (const tip of touchList()) { // where the virtual fingertips are
+    skinCtx.strokeStyle = "rgba(255,255,255,0.8)"; skinCtx.lineWidth = 1.5;
+    skinCtx.beginPath(); skinCtx.arc(tip.x_mm * mm.x, tip.y_mm * mm.y, 6 * mm.x, 0, 2 * Math.PI); skinCtx.stroke();
+  }
+  if (skin.calibrating) {
+    skinCtx.fillStyle = "rgba(0,0,0,0.55)"; skinCtx.fillRect(0, 0, W, H);
+    skinCtx.fillStyle = "#fff"; skinCtx.font = `${14 * (window.devicePixelRatio || 1)}px system-ui`;
+    skinCtx.fillText("calibrating: hands off", 10, H / 2);
+  }
+  const k = skin.counters;
+  $("skin-status").textContent = `${skin.fps.toFixed(0)} fps${skin.stalled ? " · STALLED" : ""}${skin.virtual ? "" : " · drawing off (not simulated)"}`;
+  $("skin-counters").textContent = `frames ${k.good} · bad ${k.bad} · dropped ${k.dropped} · reconnects ${k.reconnects} · errors ${k.session_errors}` +
+    (skin.last_error ? `\nlast: ${skin.last_error}` : "");
+}
+
+function mmToCanvas() {
+  return { x: skinCanvas.width / (layout.cols * layout.col_pitch_mm), y: skinCanvas.height / (layout.rows * layout.row_pitch_mm) };
+}
+
+// ------------------------------------------------------------------ virtual touches
+const pointers = new Map(); // pointerId -> {x_mm, y_mm, pressure, mouse}
+let spread = null; // mm between fingertips of a mouse "hand" (null: the count's default)
+const SPREAD = { 2: [10, 80, 18], 5: [5, 45, 30] }; // min, max, default (2: gap, 5: radius)
+
+function pointerMm(event) {
+  const rect = skinCanvas.getBoundingClientRect();
+  return {
+    x_mm: ((event.clientX - rect.left) / rect.width) * layout.cols * layout.col_pitch_mm,
+    y_mm: ((event.clientY - rect.top) / rect.height) * layout.rows * layout.row_pitch_mm,
+  };
+}
+
+function pressureOf(event) { // the device's pressure where it reports one, else the slider
+  const fromDevice = event.pointerType !== "mouse" && event.pressure > 0 && event.pressure !== 0.5;
+  return fromDevice ? event.pressure : Number($("pressure").value);
+}
+
+const forceOf = (pressure) => 0.2 + 2.8 * pressure; // N: light touch .. firm press
+
+function touchList() {
+  const fingers = Number($("fingers").value);
+  const tips = [];
+  for (const [id, p] of pointers) {
+    const force_n = forceOf(p.pressure);
+    if (!p.mouse || fingers === 1) { tips.push({ id, x_mm: p.x_mm, y_mm: p.y_mm, force_n }); continue; }
+    const s = spread ?? SPREAD[fingers][2];
+    if (fingers === 2) {
+      tips.push({ id: id * 10, x_mm: p.x_mm - s / 2, y_mm: p.y_mm, force_n });
+      tips.push({ id: id * 10 + 1, x_mm: p.x_mm + s / 2, y_mm: p.y_mm, force_n });
+    } else {
+      for (let k = 0; k < 5; k++) { // thumb low left, four fingers above, on a circle
+        const angle = (-200 + k * 55) * Math.PI / 180;
+        tips.push({ id: id * 10 + k, x_mm: p.x_mm + s * Math.cos(angle), y_mm: p.y_mm + s * Math.sin(angle), force_n });
+      }
+    }
+  }
+  return tips;
+}
+
+function sendTouches() { send({ type: "touch", touches: touchList() }); }
+
+skinCanvas.addEventListener("pointerdown", (event) => {
+  event.preventDefault();
+  skinCanvas.setPointerCapture(event.pointerId);
+  if (event.pointerType === "mouse") spread = null;
+  pointers.set(event.pointerId, { ...pointerMm(event), pressure: pressureOf(event), mouse: event.pointerType === "mouse" });
+  sendTouches();
+});
+skinCanvas.addEventListener("pointermove", (event) => {
+  const p = pointers.get(event.pointerId);
+  if (!p) return;
+  Object.assign(p, pointerMm(event), { pressure: pressureOf(event) });
+  sendTouches();
+});
+for (const kind of ["pointerup", "pointercancel", "lostpointercapture"]) {
+  skinCanvas.addEventListener(kind, (event) => {
+    if (pointers.delete(event.pointerId)) sendTouches();
+  });
+}
+skinCanvas.addEventListener("wheel", (event) => { // pinch a mouse hand
+  const fingers = Number($("fingers").value);
+  if (fingers === 1 || pointers.size === 0) return;
+  event.preventDefault();
+  const [low, high, start] = SPREAD[fingers];
+  spread = Math.max(low, Math.min(high, (spread ?? start) + (event.deltaY > 0 ? -3 : 3)));
+  sendTouches();
+}, { passive: false });
+
+// ------------------------------------------------------------------ recognition
+function buildBars(classes) {
+  const bars = $("bars");
+  bars.innerHTML = "";
+  for (const name of classes) {
+    const row = document.createElement("div");
+    row.className = "bar"; row.dataset.name = name;
+    row.innerHTML = `<span class="mono">${name}</span><span class="track"><span class="fill"></span></span><span class="mono p">0.00</span>`;
+    bars.appendChild(row);
+  }
+}
+
+function updateRecognition(state) {
+  const rec = state.recognition;
+  $("command").textContent = rec.command ? `${rec.command}  ${rec.command_for_s.toFixed(1)} s` : "-";
+  $("command").dataset.command = rec.command || "";
+  $("action").textContent = rec.action;
+  const rows = $("bars").children;
+  for (const row of rows) {
+    const k = rec.classes.indexOf(row.dataset.name);
+    const p = k >= 0 ? rec.p[k] : 0;
+    row.querySelector(".fill").style.width = `${(100 * p).toFixed(1)}%`;
+    row.querySelector(".p").textContent = p.toFixed(2);
+    row.classList.toggle("top", row.dataset.name === rec.top[0]);
+  }
+}
+
+const COMMAND_COLOURS = {};
+function commandColour(name) {
+  if (!COMMAND_COLOURS[name]) {
+    let h = 0; for (const ch of name) h = (h * 31 + ch.charCodeAt(0)) % 360;
+    COMMAND_COLOURS[name] = `hsl(${h}, 65%, 55%)`;
+  }
+  return COMMAND_COLOURS[name];
+}
+
+function drawTimeline(state) {
+  const canvas = $("timeline");
+  const dpr = window.devicePixelRatio || 1;
+  canvas.width = Math.round(canvas.clientWidth * dpr); canvas.height = Math.round(54 * dpr);
+  const ctx = canvas.getContext("2d"), W = canvas.width, H = canvas.height;
+  ctx.clearRect(0, 0, W, H);
+  const span = 30, now = state.t, x = (t) => W * (1 - (now - t) / span);
+  const entries = state.timeline;
+  let open = null;
+  ctx.font = `${10 * dpr}px system-ui`;
+  const commands = entries.filter((e) => e.kind === "command");
+  for (const e of commands) {
+    if (open && open.name) {
+      ctx.fillStyle = commandColour(open.name);
+      ctx.fillRect(x(open.t), 6 * dpr, Math.max(2, x(e.t) - x(open.t)), 22 * dpr);
+      ctx.fillStyle = "#fff"; ctx.fillText(open.name, x(open.t) + 2, 20 * dpr);
+    }
+    open = e;
+  }
+  if (open && open.name) {
+    ctx.fillStyle = commandColour(open.name);
+    ctx.fillRect(x(open.t), 6 * dpr, Math.max(2, W - x(open.t)), 22 * dpr);
+    ctx.fillStyle = "#fff"; ctx.fillText(open.name, x(open.t) + 2, 20 * dpr);
+  }
+  for (const e of entries.filter((item) => item.kind === "stop")) {
+    ctx.fillStyle = "#e5484d"; ctx.fillRect(x(e.t) - dpr, 0, 2 * dpr, H);
+    ctx.fillText("stop", x(e.t) + 3, 44 * dpr);
+  }
+  ctx.fillStyle = "#8b93a1"; ctx.fillText("-30 s", 2, H - 2); ctx.fillText("now", W - 24 * dpr, H - 2);
+}
+
+function updateMessages(messages) {
+  const list = $("messages");
+  const lines = [...messages, ...localMessages].slice(-12);
+  if (list.dataset.text === lines.join("\n")) return;
+  list.dataset.text = lines.join("\n");
+  list.innerHTML = "";
+  for (const line of lines.reverse()) {
+    const li = document.createElement("li");
+    li.textContent = line;
+    if (line.includes("error")) li.className = "error";
+    list.appendChild(li);
+  }
+}
+
+// ------------------------------------------------------------------ controls
+function buildPerformButtons(gestures) {
+  const grid = $("perform");
+  grid.innerHTML = "";
+  for (const name of gestures) {
+    const button = document.createElement("button");
+    button.textContent = name; button.dataset.gesture = name;
+    button.addEventListener("click", () => command("perform", { gesture: name }));
+    grid.appendChild(button);
+  }
+}
+
+function updateControls(state) {
+  const recording = Boolean(state.recording);
+  $("record").textContent = recording ? "Stop recording" : "Record";
+  $("record").classList.toggle("active", recording);
+  $("record").title = recording ? state.recording : "record frames, predictions, commands and robot state";
+  if (document.activeElement !== $("speed")) {
+    $("speed").value = state.speed_scale;
+    $("speed-value").textContent = `${Math.round(state.speed_scale * 100)}%`;
+  }
+  $("autoplay").disabled = state.autoplay === null;
+  if (state.autoplay !== null) $("autoplay").checked = state.autoplay;
+  for (const button of $("perform").children) button.disabled = !state.skin.virtual;
+  $("robot-status").textContent = state.robot.connected ? (state.robot.fault ? `fault: ${state.robot.fault}` : state.robot.spec) : "not connected";
+}
+
+$("stop").addEventListener("click", () => command("stop"));
+$("resume").addEventListener("click", () => command("resume"));
+$("calibrate").addEventListener("click", () => command("calibrate"));
+$("home").addEventListener("click", () => command("home"));
+$("initial").addEventListener("click", () => command("initial"));
+$("set-initial").addEventListener("click", () => command("set_initial"));
+$("record").addEventListener("click", () => command("record", { on: !(page.state && page.state.recording) }));
+$("speed").addEventListener("input", () => { $("speed-value").textContent = `${Math.round($("speed").value * 100)}%`; });
+$("speed").addEventListener("change", () => command("speed", { value: Number($("speed").value) }));
+$("autoplay").addEventListener("change", () => command("autoplay", { on: $("autoplay").checked }));
+$("switch").addEventListener("click", () => command("switch", { skin: $("skin-spec").value.trim(), robot: $("robot-spec").value.trim() }));
+$("fingers").addEventListener("change", () => { spread = null; });
+window.addEventListener("keydown", (event) => { // space: stop, wherever the focus is but a text field
+  const el = document.activeElement;
+  if (event.code !== "Space" || (el && el.tagName === "INPUT" && el.type !== "range" && el.type !== "checkbox")) return;
+  event.preventDefault();
+  command("stop");
+});
+window.addEventListener("resize", sizeSkinCanvas);
+
+// ------------------------------------------------------------------ the 3D arm (z up, metres)
+const arm = (() => {
+  const container = $("view");
+  const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(window.devicePixelRatio || 1);
+  renderer.outputColorSpace = THREE.SRGBColorSpace;
+  container.appendChild(renderer.domElement);
+  const scene = new THREE.Scene();
+  scene.background = new THREE.Color(0x181b20);
+  const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 20);
+  camera.up.set(0, 0, 1);
+  camera.position.set(1.25, -1.05, 0.85);
+  const controls = new THREE.OrbitControls(camera, renderer.domElement);
+  controls.target.set(0.1, 0, 0.4);
+  controls.update();
+  scene.add(new THREE.HemisphereLight(0xdfe8ff, 0x303030, 1.6));
+  const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+  sun.position.set(2, -1, 3);
+  scene.add(sun);
+  const grid = new THREE.GridHelper(2, 20, 0x3a414d, 0x262b33);
+  grid.rotation.x = Math.PI / 2;
+  scene.add(grid);
+  scene.add(new THREE.AxesHelper(0.15));
+  const meshes = [];
+  let patch = null;
+  const texture = new THREE.CanvasTexture(skinTexture);
+  texture.magFilter = THREE.NearestFilter; texture.minFilter = THREE.NearestFilter;
+  texture.colorSpace = THREE.SRGBColorSpace;
+  const tcpAxes = new THREE.AxesHelper(0.09);
+  scene.add(tcpAxes);
+  const linear = new THREE.ArrowHelper(new THREE.Vector3(1, 0, 0), new THREE.Vector3(), 0.1, 0x4aa3ff, 0.035, 0.02);
+  const angular = new THREE.ArrowHelper(new THREE.Vector3(1, 0, 0), new THREE.Vector3(), 0.1, 0xc77dff, 0.035, 0.02);
+  scene.add(linear, angular);
+
+  function geometryOf(shape) {
+    const s = shape.size;
+    let g;
+    if (shape.type === "box") g = new THREE.BoxGeometry(2 * s[0], 2 * s[1], 2 * s[2]);
+    else if (shape.type === "sphere") g = new THREE.SphereGeometry(s[0], 24, 16);
+    else if (shape.type === "capsule") { g = new THREE.CapsuleGeometry(s[0], 2 * s[1], 8, 20); g.rotateX(Math.PI / 2); }
+    else { g = new THREE.CylinderGeometry(s[0], s[0], 2 * s[1], 28); g.rotateX(Math.PI / 2); }
+    return g; // three's capsules and cylinders run along y, MuJoCo's along z
+  }
+
+  function build(description) {
+    for (const m of meshes) scene.remove(m);
+    meshes.length = 0;
+    if (patch) { scene.remove(patch); patch = null; }
+    if (!description) return;
+    for (const shape of description.geoms) {
+      const [r, g, b, a] = shape.rgba;
+      const material = new THREE.MeshStandardMaterial({ color: new THREE.Color(r, g, b), transparent: a < 1, opacity: a, roughness: 0.6, metalness: 0.1 });
+      const mesh = new THREE.Mesh(geometryOf(shape), material);
+      mesh.name = shape.name;
+      if (shape.name === "skin_patch") mesh.visible = false; // drawn as the live heatmap below
+      meshes.push(mesh); scene.add(mesh);
+    }
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute("position", new THREE.Float32BufferAttribute(new Float32Array(12), 3));
+    geometry.setAttribute("uv", new THREE.Float32BufferAttribute([0, 1, 1, 1, 0, 0, 1, 0], 2));
+    geometry.setIndex([0, 2, 1, 1, 2, 3]);
+    patch = new THREE.Mesh(geometry, new THREE.MeshBasicMaterial({ map: texture, side: THREE.DoubleSide }));
+    patch.name = "skin";
+    scene.add(patch);
+  }
+
+  function update(robot) {
+    if (!robot || !robot.connected) return;
+    if (robot.geoms && robot.geoms.length === meshes.length) {
+      robot.geoms.forEach((p, k) => {
+        meshes[k].position.set(p[0], p[1], p[2]);
+        meshes[k].quaternion.set(p[4], p[5], p[6], p[3]);
+      });
+    }
+    if (patch && robot.skin_corners) { // top-left, top-right, bottom-left: a 1 mm lift off the link
+      const [tl, tr, bl] = robot.skin_corners.map((c) => new THREE.Vector3(...c));
+      const normal = new THREE.Vector3().subVectors(tr, tl).cross(new THREE.Vector3().subVectors(bl, tl)).normalize();
+      const lift = normal.multiplyScalar(-0.001);
+      const br = new THREE.Vector3().addVectors(tr, bl).sub(tl);
+      const position = patch.geometry.attributes.position;
+      [tl, tr, bl, br].forEach((v, k) => { v.add(lift); position.setXYZ(k, v.x, v.y, v.z); });
+      position.needsUpdate = true;
+      patch.geometry.computeBoundingSphere();
+      texture.needsUpdate = true;
+    }
+    const [x, y, z] = robot.tcp.pos, [qw, qx, qy, qz] = robot.tcp.quat;
+    tcpAxes.position.set(x, y, z);
+    tcpAxes.quaternion.set(qx, qy, qz, qw);
+    const origin = new THREE.Vector3(x, y, z);
+    const v = new THREE.Vector3(...robot.twist.slice(0, 3)), w = new THREE.Vector3(...robot.twist.slice(3));
+    linear.visible = v.length() > 1e-3; angular.visible = w.length() > 1e-3;
+    if (linear.visible) { linear.position.copy(origin); linear.setDirection(v.clone().normalize()); linear.setLength(0.05 + v.length() * 0.8, 0.03, 0.018); }
+    if (angular.visible) { angular.position.copy(origin); angular.setDirection(w.clone().normalize()); angular.setLength(0.05 + w.length() * 0.15, 0.03, 0.018); }
+    const deg = (a) => (a * 180 / Math.PI).toFixed(1).padStart(7);
+    const mm = (m) => (m * 1000).toFixed(1).padStart(8);
+    $("tcp").textContent =
+      `TCP  x ${mm(x)}  y ${mm(y)}  z ${mm(z)} mm   speed ${(robot.tcp_speed * 1000).toFixed(0)} mm/s\n` +
+      `quat w ${qw.toFixed(3)} x ${qx.toFixed(3)} y ${qy.toFixed(3)} z ${qz.toFixed(3)}${robot.moving ? "   moving" : ""}\n` +
+      `q    ${robot.q.map(deg).join(" ")} deg`;
+  }
+
+  function render() {
+    const w = container.clientWidth, h = container.clientHeight;
+    if (renderer.domElement.width !== Math.round(w * renderer.getPixelRatio()) || renderer.domElement.height !== Math.round(h * renderer.getPixelRatio())) {
+      renderer.setSize(w, h, false);
+      renderer.domElement.style.width = "100%"; renderer.domElement.style.height = "100%";
+      camera.aspect = w / Math.max(1, h); camera.updateProjectionMatrix();
+    }
+    renderer.render(scene, camera);
+    requestAnimationFrame(render);
+  }
+  requestAnimationFrame(render);
+  return { build, update };
+})();
+
+sizeSkinCanvas();
+connect();
