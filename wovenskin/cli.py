@@ -873,7 +873,7 @@ def run(
     open_browser: bool = typer.Option(
         True, "--open/--no-open", help="Open the dashboard in the default web browser."
     ),
-    ui_rate: float = typer.Option(30.0, help="Dashboard updates per second (30-60)."),
+    ui_rate: float = typer.Option(40.0, help="Dashboard updates per second (30-60)."),
     trace: str = typer.Option(
         None, help="Write a JSON line per control tick to this .jsonl file ('-': stdout)."
     ),

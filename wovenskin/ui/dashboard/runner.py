@@ -78,7 +78,7 @@ class DashboardRunner:
         skin: str,
         robot: str,
         *,
-        ui_rate_hz: float = 30.0,
+        ui_rate_hz: float = 40.0,
         record_dir: str | Path = "recordings",
     ) -> None:
         if not 1.0 <= ui_rate_hz <= 120.0:
@@ -98,7 +98,7 @@ class DashboardRunner:
         self._seq = 0
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
-        self._last_snapshot_wall = 0.0
+        self._next_publish = 0.0
         self._gesture: str | None = None
         self._stops_seen = 0
         self._touching = False
@@ -194,8 +194,9 @@ class DashboardRunner:
             if ticks:
                 self._loop_rate.add(ticks, now)
             self._watch(session, now)
-            if now - self._last_snapshot_wall >= 1.0 / self.ui_rate_hz:
-                self._last_snapshot_wall = now
+            if now >= self._next_publish:  # a fixed schedule: the rate holds on average
+                period = 1.0 / self.ui_rate_hz
+                self._next_publish = max(self._next_publish + period, now - period)
                 try:
                     self._publish(session, now)
                 except Exception as exc:  # a view bug must not stop control: say it once

@@ -21,6 +21,8 @@ import contextlib
 import hmac
 import json
 import secrets
+import threading
+import time
 from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
@@ -130,7 +132,7 @@ async def _send_states(ws: WebSocket, runner: DashboardRunner, replies: asyncio.
     await ws.send_text(json.dumps(runner.describe()))
     sent = -1
     scene_robot = runner.robot_spec
-    period = 1.0 / runner.ui_rate_hz
+    poll = 0.5 / runner.ui_rate_hz  # twice per page frame: no state waits a whole period
     while True:
         while not replies.empty():
             await ws.send_text(replies.get_nowait())
@@ -141,7 +143,7 @@ async def _send_states(ws: WebSocket, runner: DashboardRunner, replies: asyncio.
                 await ws.send_text(json.dumps(runner.describe()))
             sent = snapshot["seq"]
             await ws.send_text(json.dumps(snapshot, allow_nan=False))
-        await asyncio.sleep(period)
+        await asyncio.sleep(poll)
 
 
 def _handle(runner: DashboardRunner, text: str) -> dict | None:
@@ -206,3 +208,49 @@ def serve(
         pass
     finally:
         runner.close()
+
+
+class BackgroundServer:
+    """The dashboard served from a background thread (tests, notebooks): ``start()`` returns
+    the page's address once it listens; ``stop()`` ends the server and closes the runner."""
+
+    def __init__(
+        self, runner: DashboardRunner, host: str = "127.0.0.1", port: int = 0,
+        token: str | None = None,
+    ) -> None:  # fmt: skip
+        import socket
+
+        import uvicorn
+
+        if port == 0:  # a free port, chosen now so that the address is known before start
+            with socket.socket() as probe:
+                probe.bind((host, 0))
+                port = probe.getsockname()[1]
+        self.runner, self.host, self.port, self.token = runner, host, port, token
+        config = uvicorn.Config(
+            create_app(runner, token), host=host, port=port, log_level="warning"
+        )
+        self._server = uvicorn.Server(config)
+        self._thread: threading.Thread | None = None
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
+
+    def start(self, timeout: float = 20.0) -> str:
+        self.runner.start()
+        self._thread = threading.Thread(target=self._server.run, name="dashboard-http", daemon=True)
+        self._thread.start()
+        deadline = time.monotonic() + timeout
+        while not self._server.started:
+            if time.monotonic() > deadline or not self._thread.is_alive():
+                self.stop()
+                raise RuntimeError(f"the dashboard did not start on {self.host}:{self.port}")
+            time.sleep(0.02)
+        return self.url
+
+    def stop(self) -> None:
+        self._server.should_exit = True
+        if self._thread is not None:
+            self._thread.join(timeout=10.0)
+        self.runner.close()

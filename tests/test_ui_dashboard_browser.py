@@ -1,0 +1,228 @@
+"""The dashboard in real headless Chromium (Debian's package, driven by Playwright).
+
+A mouse swipe drawn on the virtual skin goes through the simulated skin's physics, the
+shipped recogniser, the arbiter, the safety layer and the simulated arm, exactly as real
+frames do.  Screenshots and the measured page rate and touch-to-robot latency are saved
+under ``artifacts/browser/`` (kept by CI).  Without Chromium or Playwright the tests skip,
+except where ``WOVENSKIN_REQUIRE_BROWSER=1`` (CI), where that is a failure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from wovenskin.control.session import open_session
+from wovenskin.ui.dashboard.runner import DashboardRunner
+from wovenskin.ui.dashboard.server import BackgroundServer
+
+ARTIFACTS = Path(os.environ.get("WOVENSKIN_ARTIFACTS", Path(__file__).parents[1] / "artifacts"))
+SHOTS = ARTIFACTS / "browser"
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def _browser_or_skip():
+    required = os.environ.get("WOVENSKIN_REQUIRE_BROWSER") == "1"
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        if required:
+            raise
+        pytest.skip("playwright is not installed (pip install -e '.[dev]')")
+    if CHROMIUM is None:
+        if required:
+            pytest.fail(
+                "WOVENSKIN_REQUIRE_BROWSER=1 but no chromium on PATH (apt install chromium)"
+            )
+        pytest.skip("no chromium on PATH (apt install chromium)")
+    return sync_playwright
+
+
+@pytest.fixture(scope="module")
+def browser():
+    sync_playwright = _browser_or_skip()
+    with sync_playwright() as p:
+        chromium = p.chromium.launch(
+            executable_path=CHROMIUM, args=["--headless", "--no-sandbox", "--disable-gpu"]
+        )
+        yield chromium
+        chromium.close()
+
+
+@pytest.fixture()
+def dashboard(tmp_path):
+    def opener(skin: str, robot: str):
+        return open_session(skin, robot, poses=tmp_path / "poses.toml")
+
+    runner = DashboardRunner(opener, "sim:auto=0,seed=11", "sim", record_dir=tmp_path / "rec")
+    server = BackgroundServer(runner)
+    server.start()
+    yield server
+    server.stop()
+
+
+@pytest.fixture()
+def page(browser, dashboard):
+    context = browser.new_context(viewport={"width": 1440, "height": 900}, has_touch=True)
+    page = context.new_page()
+    problems: list[str] = []
+    page.on("console", lambda m: problems.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
+    page.goto(dashboard.url)
+    page.wait_for_function("window.wovenskin && window.wovenskin.received > 3", timeout=20000)
+    page.wait_for_function("!window.wovenskin.state.skin.calibrating", timeout=20000)
+    page.problems = problems
+    yield page
+    context.close()
+
+
+def _state(page) -> dict:
+    return page.evaluate("window.wovenskin.state")
+
+
+def _swipe_up(page, travel: float = 0.65, steps: int = 30, step_s: float = 0.012) -> None:
+    """Press in the lower part of the skin and slide toward row 0 (up), then keep resting."""
+    box = page.locator("#skin").bounding_box()
+    x = box["x"] + box["width"] * 0.5
+    y0 = box["y"] + box["height"] * 0.8
+    y1 = y0 - box["height"] * travel
+    page.mouse.move(x, y0)
+    page.mouse.down()
+    for k in range(1, steps + 1):
+        page.mouse.move(x, y0 + (y1 - y0) * k / steps)
+        time.sleep(step_s)
+
+
+class TouchScreen:
+    """Fingers on a touch screen (Chrome DevTools touch events): each becomes a Pointer
+    Event of type touch with its own pointer id, as on a tablet."""
+
+    def __init__(self, page) -> None:
+        self.cdp = page.context.new_cdp_session(page)
+        self.box = page.locator("#skin").bounding_box()
+
+    def _send(self, kind: str, points: list[tuple[float, float]]) -> None:
+        touch_points = [
+            {"x": self.box["x"] + self.box["width"] * fx, "y": self.box["y"] + self.box["height"] * fy,
+             "id": k, "force": 0.35, "radiusX": 4, "radiusY": 4}
+            for k, (fx, fy) in enumerate(points)
+        ]  # fmt: skip
+        self.cdp.send("Input.dispatchTouchEvent", {"type": kind, "touchPoints": touch_points})
+
+    def swipe(self, start: list[tuple[float, float]], delta: tuple[float, float], steps: int = 30):
+        """Land the fingers at ``start`` (fractions of the skin) and slide them by ``delta``."""
+        self._send("touchStart", start)
+        for k in range(1, steps + 1):
+            f = k / steps
+            self._send("touchMove", [(x + delta[0] * f, y + delta[1] * f) for x, y in start])
+            time.sleep(0.012)
+
+    def lift(self) -> None:
+        self._send("touchEnd", [])
+
+
+def _wait_for(page, expression: str, timeout_s: float) -> bool:
+    try:
+        page.wait_for_function(expression, timeout=timeout_s * 1000)
+        return True
+    except Exception:
+        return False
+
+
+def _save(page, name: str) -> Path:
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    path = SHOTS / name
+    page.screenshot(path=str(path))
+    return path
+
+
+def test_the_page_loads_with_no_console_errors(page) -> None:
+    time.sleep(1.0)
+    state = _state(page)
+    assert state["skin"]["virtual"] and state["robot"]["connected"]
+    assert len(state["robot"]["geoms"]) == page.evaluate(
+        "window.wovenskin.scene.scene.geoms.length"
+    )
+    assert page.locator("#perform button").count() == 14
+    assert page.locator("#bars .bar").count() == 15
+    _save(page, "dashboard-idle.png")
+    assert page.problems == []
+
+
+def test_a_drawn_upward_swipe_drives_the_arm_along_its_tool_z(page) -> None:
+    before = _state(page)["robot"]
+    _swipe_up(page)
+    recognised = _wait_for(page, "window.wovenskin.state.recognition.command", 2.0)
+    command = _state(page)["recognition"]["command"]
+    assert recognised and command == "swipe_up", f"command {command!r}"
+    start = _state(page)["robot"]
+    time.sleep(0.8)  # the finger rests on the skin: the command holds, the arm moves
+    end = _state(page)["robot"]
+    _save(page, "dashboard-swipe-up.png")
+    page.mouse.up()
+    z_tool = np.asarray(start["tcp"]["z_axis"])
+    moved = np.asarray(end["tcp"]["pos"]) - np.asarray(start["tcp"]["pos"])
+    distance = float(np.linalg.norm(moved))
+    assert distance > 0.02, f"the TCP moved only {distance * 1000:.1f} mm"
+    assert float(moved @ z_tool) > 0.95 * distance  # along +z of the tool frame
+    assert np.allclose(before["tcp"]["z_axis"], end["tcp"]["z_axis"], atol=0.02)  # no rotation
+    assert _wait_for(page, "!window.wovenskin.state.recognition.command", 2.0)  # lift-off ends it
+    # What the browser saw: the page rate and the touch -> command -> motion latency.
+    rate = page.evaluate(
+        "(() => { const s = window.wovenskin.receivedAt; "
+        "return (s.length - 1) / ((s[s.length - 1] - s[0]) / 1000); })()"
+    )
+    latency = _state(page)["latency"]
+    assert rate > 10.0  # a live stream (the figure itself is a benchmark, not a test)
+    assert latency["command"] == "swipe_up" and latency["touch_to_motion_ms"] is not None
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    (SHOTS / "metrics.json").write_text(
+        json.dumps(
+            {
+                "page_rate_hz": round(rate, 1),
+                "control_hz": _state(page)["rates"]["control_hz"],
+                **latency,
+                "tcp_travel_mm": round(distance * 1000, 1),
+            },
+            indent=2,
+        )  # fmt: skip
+    )
+    assert page.problems == []
+
+
+def test_the_stop_button_stops_the_moving_arm_until_resumed(page) -> None:
+    fingers = TouchScreen(page)  # a finger rests on the touch screen while the mouse clicks
+    fingers.swipe([(0.5, 0.8)], (0.0, -0.65))
+    assert _wait_for(page, "window.wovenskin.state.recognition.command === 'swipe_up'", 2.0)
+    assert _wait_for(page, "window.wovenskin.state.robot.tcp_speed > 0.02", 2.0)
+    page.click("#stop")
+    assert _wait_for(page, "window.wovenskin.state.safety.user_stopped", 1.0)
+    assert _wait_for(page, "window.wovenskin.state.robot.tcp_speed < 0.001", 1.5)
+    time.sleep(0.3)
+    still = _state(page)["robot"]
+    time.sleep(0.5)  # the finger still rests on the skin: the arm stays put
+    assert np.allclose(still["tcp"]["pos"], _state(page)["robot"]["tcp"]["pos"], atol=1e-4)
+    _save(page, "dashboard-stopped.png")
+    fingers.lift()
+    page.click("#resume")
+    assert _wait_for(page, "!window.wovenskin.state.safety.stopped", 2.0)
+    page.keyboard.press("Space")  # the space bar stops too
+    assert _wait_for(page, "window.wovenskin.state.safety.user_stopped", 1.0)
+    assert page.problems == []
+
+
+def test_a_perform_button_makes_the_simulated_person_act(page) -> None:
+    page.click("#perform button[data-gesture='swipe_left']")
+    assert _wait_for(page, "window.wovenskin.state.recognition.command === 'swipe_left'", 6.0)
+    assert _wait_for(page, "window.wovenskin.state.robot.tcp_speed > 0.01", 2.0)
+    page.click("#record")
+    assert _wait_for(page, "window.wovenskin.state.recording", 2.0)
+    page.click("#record")
+    assert _wait_for(page, "!window.wovenskin.state.recording", 2.0)
+    assert page.problems == []
