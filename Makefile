@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 PIP := $(PY) -m pip
 
-.PHONY: run test lint bench clean
+.PHONY: run test lint bench clean chromium
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -22,8 +22,19 @@ run: $(VENV)/.installed
 	$(VENV)/bin/wovenskin run
 
 test: $(VENV)/.installed-dev
+	@command -v chromium >/dev/null 2>&1 || $(MAKE) --no-print-directory chromium
 	$(VENV)/bin/ruff check wovenskin tests
 	$(PY) -m pytest
+
+# Debian's chromium for the dashboard's browser tests (Playwright drives it; no tool ever
+# downloads a browser of its own). Without it the browser tests skip, except in CI.
+chromium:
+	@if [ "$$(id -u)" = 0 ]; then SUDO=; else SUDO="sudo -n"; fi; \
+	echo "installing Debian's chromium for the browser tests"; \
+	( $$SUDO apt-get install -y -q chromium >/dev/null 2>&1 || \
+	  ( $$SUDO apt-get update -q >/dev/null 2>&1 && \
+	    $$SUDO apt-get install -y -q chromium >/dev/null 2>&1 ) ) || \
+	echo "warning: could not install chromium; the browser tests will skip"
 
 lint: $(VENV)/.installed-dev
 	$(VENV)/bin/ruff check wovenskin tests

@@ -131,3 +131,39 @@ def test_pose_set_and_show(tmp_path) -> None:
     assert "home" not in result.stdout
     one_line_error(invoke("pose", "set", "initial", "--robot", "tm", "--poses", poses), "robot")
     one_line_error(invoke("pose", "set", "work", "--poses", poses), "unknown pose name")
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def test_run_opens_the_dashboard_by_default_and_ends_after_seconds(model_dir, tmp_path) -> None:
+    port = _free_port()
+    record = tmp_path / "dash.wsrec"
+    result = invoke(
+        "run", "--model", model_dir, "--no-open", "--port", port, "--seconds", 3,
+        "--record", record, "--poses", tmp_path / "p.toml",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert f"http://127.0.0.1:{port}/" in result.stdout
+    assert "skin sim:auto=0" in result.stdout and "robot sim" in result.stdout
+    assert "dashboard closed" in result.stdout
+    assert len(read_recording(record).t) > 200  # the command line's recording was written
+
+
+def test_the_dashboard_refuses_bad_options_in_one_line(model_dir) -> None:
+    import socket
+
+    one_line_error(invoke("run", "--view", "vr", "--model", model_dir), "--view must be")
+    one_line_error(invoke("run", "--ui-rate", 200, "--model", model_dir), "--ui-rate must be")
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        one_line_error(
+            invoke("run", "--port", port, "--model", model_dir, "--no-open"), "cannot listen"
+        )

@@ -355,3 +355,76 @@ def test_seconds_limits_the_session_on_the_skin_clock(tmp_path) -> None:
     result, records = run_and_trace(session, buffer, seconds=2.0)
     assert result.ended == "2 s elapsed"
     assert records[-1]["t"] == pytest.approx(2.0, abs=0.01)
+
+
+# -- what the dashboard asks of a session ------------------------------------------------------
+
+
+def test_the_speed_scale_slows_gesture_motion(tmp_path, swipe_up_run) -> None:
+    _, _, _, full = swipe_up_run
+    session, buffer = replay_session(tmp_path, stream_of("swipe_up"), "swipe_up")
+    session.set_speed_scale(0.5)
+    _, half = run_and_trace(session, buffer)
+    peak_full = max(r["tcp_speed"] for r in full)
+    peak_half = max(r["tcp_speed"] for r in half)
+    assert 0.4 < peak_half / peak_full < 0.6
+    with pytest.raises(ValueError, match="speed scale"):
+        session.set_speed_scale(0.0)
+    with pytest.raises(ValueError, match="speed scale"):
+        session.set_speed_scale(float("nan"))
+
+
+def _idle_session(tmp_path) -> ControlSession:
+    session = open_session(
+        "sim:auto=0,speed=0,seed=4", "sim", recognizer=ContactMeans("swipe_up"),
+        poses=tmp_path / "poses.toml",
+    )  # fmt: skip
+    session.start()
+    while session.state.robot is None or session.live_skin.state.calibrating:
+        session.step()
+    return session
+
+
+def test_go_to_pose_runs_to_completion_and_is_refused_while_stopped(tmp_path) -> None:
+    from wovenskin.robots.sim.tm5_900 import HOME_Q
+
+    session = _idle_session(tmp_path)
+    try:
+        session.emergency_stop()
+        assert session.go_to_pose("home") is False
+        assert "clear the stop" in session.state.last_error
+        session.resume()
+        assert session.go_to_pose("home") is True
+        session.run(seconds=12.0)
+        assert np.allclose(session.state.robot.q, HOME_Q, atol=1e-3)
+        with pytest.raises(ValueError, match="unknown pose"):
+            session.go_to_pose("nowhere")
+    finally:
+        session.close()
+
+
+def test_store_pose_writes_the_current_joints(tmp_path) -> None:
+    session = _idle_session(tmp_path)
+    try:
+        session.store_pose("initial")
+    finally:
+        session.close()
+    stored = PoseStore.load(tmp_path / "poses.toml").get("initial")
+    assert stored is not None and np.allclose(stored.q, session.state.robot.q)
+
+
+def test_recording_can_start_and_stop_while_running(tmp_path) -> None:
+    session = _idle_session(tmp_path)
+    path = tmp_path / "live.wsrec"
+    try:
+        session.start_recording(path)
+        with pytest.raises(RuntimeError, match="already recording"):
+            session.start_recording(tmp_path / "other.wsrec")
+        session.run(seconds=1.0)
+        assert session.stop_recording() == path
+        assert session.stop_recording() is None
+        session.run(seconds=0.5)  # frames after the stop are not written
+    finally:
+        session.close()
+    recording = read_recording(path)
+    assert 150 <= len(recording.t) <= 260 and recording.annotations_of("robot")

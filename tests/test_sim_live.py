@@ -151,3 +151,63 @@ def test_stop_pauses_and_start_resumes():
             src.send_command("explode")
     finally:
         src.close()
+
+
+# -- outside fingertips (the dashboard's virtual skin) ----------------------------------------
+
+
+def _frames_for(source, seconds: float) -> np.ndarray:
+    frames, deadline = [], time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        frames += [f.values for f in source.poll(0.05) if isinstance(f, Frame)]
+    return np.asarray(frames)
+
+
+def test_outside_fingertips_press_where_they_are_put_and_lift_off():
+    from wovenskin.sim.live import Fingertip
+
+    source = SimulatedSkinSource(seed=5, autonomous=False, lookahead_s=0.03)
+    source.start()
+    try:
+        rest = _frames_for(source, 0.4).mean(axis=0)
+        source.set_touches({7: Fingertip(x_mm=75.0, y_mm=21.0, force_n=1.5)})  # row 1, col 7
+        assert source.touching
+        pressed = _frames_for(source, 0.3)[-10:].mean(axis=0) - rest
+        assert np.unravel_index(np.argmax(pressed), pressed.shape) == (1, 7)
+        source.set_touches({7: Fingertip(x_mm=25.0, y_mm=119.0, force_n=1.5)})  # row 8, col 2
+        moved = _frames_for(source, 0.3)[-10:].mean(axis=0) - rest
+        assert np.unravel_index(np.argmax(moved), moved.shape) == (8, 2)
+        source.set_touches({})
+        lifted = _frames_for(source, 0.5)[-10:].mean(axis=0) - rest
+        assert not source.touching
+        assert lifted.max() < 0.2 * moved.max()
+        assert source.current_label() is None  # outside touches are not the person's events
+    finally:
+        source.close()
+
+
+@pytest.mark.parametrize(
+    "touches, message",
+    [
+        ({1: (10.0, 10.0, 1.0)}, "not a Fingertip"),
+        ({k: None for k in range(11)}, "at most 10"),
+    ],
+)
+def test_bad_outside_touches_are_refused(touches, message):
+    source = SimulatedSkinSource(seed=1, autonomous=False)
+    with pytest.raises(ValueError, match=message):
+        source.set_touches(touches)
+
+
+@pytest.mark.parametrize("values", [(float("nan"), 1.0, 1.0), (1.0, 1.0, -0.5), (1.0, "a", 1.0)])
+def test_a_fingertip_must_be_finite_with_a_nonnegative_force(values):
+    from wovenskin.sim.live import Fingertip
+
+    with pytest.raises(ValueError):
+        Fingertip(*values)
+
+
+def test_the_lookahead_option_is_checked():
+    assert open_source("sim:lookahead=0.05").lookahead_s == 0.05
+    with pytest.raises(ValueError, match="lookahead"):
+        open_source("sim:lookahead=0")

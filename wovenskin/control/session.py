@@ -254,7 +254,9 @@ class ControlSession:
             self._error(f"cannot go to the {name} pose while stopped: clear the stop first")
             return False
         self._pose_move = None
-        return self._start_pose_move(PoseAction(name, hold_to_run=False), self._now)
+        started = self._start_pose_move(PoseAction(name, hold_to_run=False), self._now)
+        self._read_robot()  # the next tick must see the move, not the state before it
+        return started
 
     def store_pose(self, name: str) -> None:
         """Store the arm's current joints as the ``name`` pose (``PoseStore`` file)."""

@@ -196,7 +196,7 @@ class DashboardRunner:
             self._watch(session, now)
             if now >= self._next_publish:  # a fixed schedule: the rate holds on average
                 period = 1.0 / self.ui_rate_hz
-                self._next_publish = max(self._next_publish + period, now - period)
+                self._next_publish = max(self._next_publish + period, now)
                 try:
                     self._publish(session, now)
                 except Exception as exc:  # a view bug must not stop control: say it once
@@ -305,17 +305,26 @@ class DashboardRunner:
     def _switch(self, skin: str, robot: str) -> None:
         """Close this session and open one with another skin or robot; if that fails the
         old one is reopened, so the page never ends up with nothing."""
+        from wovenskin.robots.registry import make_robot
+
+        parse_spec(skin)  # a malformed spec fails here, before anything is closed
+        make_robot(robot)  # builds the backend object only: nothing connects yet
         old = self.session
         assert old is not None
         old_skin, old_robot = self.skin_spec, self.robot_spec
-        speed = old.speed_scale
+        speed, messages = old.speed_scale, list(old.state.messages)
         old.close()
         try:
             self.session = self._open(skin, robot)
+            failure = None
         except Exception as exc:
             self.session = self._open(old_skin, old_robot)
-            raise ValueError(f"could not open skin {skin!r} with robot {robot!r}: {exc}") from exc
+            failure = exc
         self.session.speed_scale = speed
+        self.session.state.messages.extend(messages)
+        if failure is not None:
+            why = f"could not open skin {skin!r} with robot {robot!r}: {failure}"
+            raise ValueError(why) from failure
         self.session.state.messages.append(f"now: skin {self.skin_spec}, robot {self.robot_spec}")
 
     def _sim_source(self) -> Any:

@@ -1,0 +1,229 @@
+"""The dashboard without a browser: scene geometry, page state, runner commands, server."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from stand_ins import ContactMeans
+
+from wovenskin.control.session import open_session
+from wovenskin.gestures import CLASS_NAMES
+from wovenskin.robots.sim import SimRobot
+from wovenskin.robots.sim.tm5_900 import INITIAL_Q
+from wovenskin.sim.live import Fingertip
+from wovenskin.skin.layout import SkinLayout
+from wovenskin.ui.dashboard.runner import DashboardRunner
+from wovenskin.ui.dashboard.scene import ArmScene
+from wovenskin.ui.dashboard.server import create_app, needs_token, parse_touches
+
+# -- scene ------------------------------------------------------------------------------
+
+
+def test_the_scene_matches_the_simulated_arm() -> None:
+    robot = SimRobot()
+    scene = ArmScene.for_robot(robot)
+    assert scene is not None
+    names = [shape.name for shape in scene.shapes]
+    assert "skin_patch" in names and "floor" not in names
+    poses = scene.poses(INITIAL_Q)
+    assert len(poses) == len(scene.shapes) and all(len(p) == 7 for p in poses)
+    robot.connect()
+    tcp = robot.state().tcp.position
+    fingers = [p[:3] for p, s in zip(poses, scene.shapes, strict=True) if "finger" in s.name]
+    assert np.linalg.norm(np.mean(fingers, axis=0) - tcp) < 0.06  # the fingertips hold the TCP
+    with pytest.raises(ValueError, match="joint angles"):
+        scene.poses([0.0] * 5)
+    with pytest.raises(ValueError, match="joint angles"):
+        scene.poses([np.nan] * 6)
+
+
+def test_the_skin_corners_span_the_layout_with_up_along_the_patch() -> None:
+    scene = ArmScene.for_robot(SimRobot())
+    scene.poses(INITIAL_Q)
+    layout = SkinLayout()
+    top_left, top_right, bottom_left = (np.asarray(c) for c in scene.skin_corners(layout))
+    assert np.linalg.norm(top_right - top_left) == pytest.approx(layout.width_mm / 1000, abs=1e-4)
+    assert np.linalg.norm(bottom_left - top_left) == pytest.approx(
+        layout.height_mm / 1000, abs=1e-4
+    )
+    assert abs(np.dot(top_right - top_left, bottom_left - top_left)) < 1e-8  # a rectangle
+
+
+def test_arms_without_a_model_get_no_scene() -> None:
+    class Other:
+        pass
+
+    assert ArmScene.for_robot(Other()) is None
+
+
+# -- runner -----------------------------------------------------------------------------
+
+
+def _opener(tmp_path, gesture: str = "swipe_up"):
+    def opener(skin: str, robot: str):
+        return open_session(
+            skin, robot, recognizer=ContactMeans(gesture), poses=tmp_path / "poses.toml"
+        )
+
+    return opener
+
+
+def _wait(predicate, timeout: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+@pytest.fixture()
+def runner(tmp_path):
+    runner = DashboardRunner(
+        _opener(tmp_path), "sim:auto=0,seed=2", "sim", record_dir=tmp_path / "rec"
+    )
+    runner.start()
+    assert _wait(lambda: runner.latest() is not None and not runner.latest()["skin"]["calibrating"])
+    yield runner
+    runner.close()
+
+
+def test_the_page_state_is_complete_and_json(runner) -> None:
+    state = runner.latest()
+    text = json.dumps(state, allow_nan=False)  # what the server sends
+    assert len(text) < 20_000
+    skin = state["skin"]
+    assert len(skin["signal"]) == skin["rows"] * skin["cols"] == 100 and skin["virtual"]
+    assert state["recognition"]["classes"] == list(CLASS_NAMES)
+    assert len(state["robot"]["geoms"]) == len(runner.scene.shapes)
+    assert len(state["robot"]["skin_corners"]) == 3 and len(state["robot"]["twist"]) == 6
+    assert "lookahead=0.03" in state["skin"]["source"]  # quick virtual touches
+    described = runner.describe()
+    assert described["gestures"] == [n for n in CLASS_NAMES if n != "invalid"]
+
+
+def test_page_states_come_at_the_page_rate_while_control_runs_at_the_skin_rate(runner) -> None:
+    first = runner.latest()["seq"]
+    time.sleep(1.0)
+    state = runner.latest()
+    assert state["seq"] - first > 10  # a stream of states (the rate itself is benchmarked)
+    assert state["rates"]["control_hz"] > 3 * state["rates"]["ui_hz"] > 0
+
+
+def test_virtual_touches_reach_the_robot_only_through_the_recogniser(runner) -> None:
+    runner.touch({1: Fingertip(50.0, 70.0, 1.5)})
+    assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+    assert _wait(lambda: runner.latest()["robot"]["tcp_speed"] > 0.01)
+    assert runner.latest()["latency"]["command"] == "swipe_up"
+    runner.touch({})
+    assert _wait(lambda: runner.latest()["recognition"]["command"] is None)
+    timeline = runner.latest()["timeline"]
+    assert [e["name"] for e in timeline if e["kind"] == "command"][-2:] == ["swipe_up", None]
+
+
+def test_commands_stop_resume_speed_and_record(runner, tmp_path) -> None:
+    runner.submit({"cmd": "stop"})
+    assert _wait(lambda: runner.latest()["safety"]["user_stopped"])
+    runner.touch({1: Fingertip(50.0, 70.0, 1.5)})
+    time.sleep(0.5)
+    assert runner.latest()["robot"]["tcp_speed"] == 0.0  # stopped: a touch does not move it
+    runner.touch({})
+    runner.submit({"cmd": "resume"})
+    runner.submit({"cmd": "speed", "value": 0.5})
+    runner.submit({"cmd": "record", "on": True})
+    assert _wait(lambda: runner.latest()["recording"] is not None)
+    assert runner.latest()["speed_scale"] == 0.5 and not runner.latest()["safety"]["stopped"]
+    runner.submit({"cmd": "record", "on": False})
+    assert _wait(lambda: runner.latest()["recording"] is None)
+    assert len(list((tmp_path / "rec").glob("dashboard-*.wsrec"))) == 1
+
+
+def test_bad_commands_are_one_line_messages_and_change_nothing(runner) -> None:
+    with pytest.raises(ValueError, match="unknown dashboard command"):
+        runner.submit({"cmd": "launch"})
+    runner.submit({"cmd": "speed", "value": 7})
+    runner.submit({"cmd": "perform", "gesture": "wave"})
+    runner.submit({"cmd": "switch", "robot": "abb:1.2.3.4"})
+    assert _wait(lambda: sum("error" in m for m in runner.latest()["messages"]) >= 3)
+    state = runner.latest()
+    assert state["speed_scale"] == 1.0 and state["robot"]["spec"] == "sim"
+    assert runner.running
+
+
+def test_switching_the_robot_reopens_the_session(runner) -> None:
+    old = runner.session
+    runner.submit({"cmd": "switch", "robot": "sim", "skin": "sim:auto=0,seed=9"})
+    assert _wait(lambda: runner.session is not old and runner.latest()["skin"]["source"].startswith(
+        "sim:auto=0,seed=9"))  # fmt: skip
+
+
+def test_the_virtual_skin_needs_the_simulated_skin(tmp_path) -> None:
+    from wovenskin.recording.formats import write_labelled_stream
+    from wovenskin.sim.stream import simulate_stream
+
+    path = tmp_path / "s.npz"
+    write_labelled_stream(path, simulate_stream(3.0, seed=1))
+    runner = DashboardRunner(_opener(tmp_path), f"replay:{path}", "sim")
+    runner.start()
+    try:
+        with pytest.raises(ValueError, match="simulated skin"):
+            runner.touch({1: Fingertip(1.0, 1.0, 1.0)})
+        assert _wait(lambda: runner.latest() is not None)
+        assert runner.latest()["skin"]["virtual"] is False
+    finally:
+        runner.close()
+
+
+# -- server -----------------------------------------------------------------------------
+
+
+def test_parse_touches_accepts_only_well_formed_touches() -> None:
+    touches = parse_touches([{"id": 3, "x_mm": 1, "y_mm": 2.5, "force_n": 0.5}])
+    assert touches == {3: Fingertip(1.0, 2.5, 0.5)}
+    for bad in ({}, [1], [{"id": 1}], [{"id": 1, "x_mm": "nan", "y_mm": 0, "force_n": 1}]):
+        with pytest.raises(ValueError):
+            parse_touches(bad)
+
+
+def test_only_loopback_addresses_go_without_a_token() -> None:
+    assert not needs_token("127.0.0.1") and not needs_token("localhost")
+    assert needs_token("0.0.0.0") and needs_token("192.168.1.20")
+
+
+def test_the_socket_sends_the_scene_then_states_and_takes_commands(runner) -> None:
+    client = TestClient(create_app(runner))
+    assert "wovenskin" in client.get("/").text
+    assert client.get("/static/vendor/three.min.js").status_code == 200
+    with client.websocket_connect("/ws") as ws:
+        assert ws.receive_json()["type"] == "scene"
+        assert ws.receive_json()["type"] == "state"
+        ws.send_text(json.dumps({"type": "touch", "touches": [{"id": 1, "x_mm": 50,
+                                                              "y_mm": 70, "force_n": 1.5}]}))  # fmt: skip
+        assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+        ws.send_text("not json")
+        ws.send_text(json.dumps({"type": "touch", "touches": "everywhere"}))
+        ws.send_text(json.dumps({"type": "command", "cmd": "stop"}))
+        errors = []
+        while len(errors) < 2:
+            message = ws.receive_json()
+            if message["type"] == "error":
+                errors.append(message["message"])
+        assert _wait(lambda: runner.latest()["safety"]["user_stopped"])
+
+
+def test_a_token_guards_every_request_and_the_socket(runner) -> None:
+    client = TestClient(create_app(runner, token="s3cret"))
+    assert client.get("/").status_code == 401
+    assert client.get("/api/state").status_code == 401
+    assert client.get("/?token=wrong").status_code == 401
+    assert client.get("/?token=s3cret").status_code == 200
+    assert client.get("/api/state").status_code == 200  # the cookie set by the first visit
+    fresh = TestClient(create_app(runner, token="s3cret"))
+    with pytest.raises(Exception), fresh.websocket_connect("/ws") as ws:  # noqa: B017
+        ws.receive_json()
+    with fresh.websocket_connect("/ws?token=s3cret") as ws:
+        assert ws.receive_json()["type"] == "scene"
