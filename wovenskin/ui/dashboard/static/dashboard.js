@@ -93,6 +93,7 @@ function updateHeader(state) {
 const skinCanvas = $("skin");
 const skinCtx = skinCanvas.getContext("2d");
 const skinTexture = document.createElement("canvas"); // the heatmap alone, for the 3D patch
+skinTexture.width = 10; skinTexture.height = 10; // resized (with a new GPU texture) per layout
 const skinTextureCtx = skinTexture.getContext("2d");
 let layout = { rows: 10, cols: 10, row_pitch_mm: 14, col_pitch_mm: 10 };
 
@@ -122,7 +123,10 @@ function updateSkin(skin) {
   }
   const { rows, cols } = skin;
   const W = skinCanvas.width, H = skinCanvas.height, cw = W / cols, ch = H / rows;
-  skinTexture.width = cols; skinTexture.height = rows;
+  if (skinTexture.width !== cols || skinTexture.height !== rows) {
+    skinTexture.width = cols; skinTexture.height = rows;
+    arm.resizeTexture();
+  }
   for (let r = 0; r < rows; r++) {
     for (let c = 0; c < cols; c++) {
       const v = Math.sqrt(Math.max(0, skin.signal[r * cols + c]) / skin.full_scale); // gamma: light touches show
@@ -370,9 +374,9 @@ const arm = (() => {
   scene.background = new THREE.Color(0x181b20);
   const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 20);
   camera.up.set(0, 0, 1);
-  camera.position.set(1.25, -1.05, 0.85);
+  camera.position.set(1.05, -0.9, 0.75);
   const controls = new THREE.OrbitControls(camera, renderer.domElement);
-  controls.target.set(0.1, 0, 0.4);
+  controls.target.set(0.2, 0, 0.3);
   controls.update();
   scene.add(new THREE.HemisphereLight(0xdfe8ff, 0x303030, 1.6));
   const sun = new THREE.DirectionalLight(0xffffff, 1.6);
@@ -460,6 +464,8 @@ const arm = (() => {
       `q    ${robot.q.map(deg).join(" ")} deg`;
   }
 
+  function resizeTexture() { texture.dispose(); } // three.js allocates the new size on next use
+
   function render() {
     const w = container.clientWidth, h = container.clientHeight;
     if (renderer.domElement.width !== Math.round(w * renderer.getPixelRatio()) || renderer.domElement.height !== Math.round(h * renderer.getPixelRatio())) {
@@ -471,7 +477,7 @@ const arm = (() => {
     requestAnimationFrame(render);
   }
   requestAnimationFrame(render);
-  return { build, update };
+  return { build, update, resizeTexture };
 })();
 
 sizeSkinCanvas();
