@@ -201,8 +201,8 @@ def test_the_socket_sends_the_scene_then_states_and_takes_commands(runner) -> No
     with client.websocket_connect("/ws") as ws:
         assert ws.receive_json()["type"] == "scene"
         assert ws.receive_json()["type"] == "state"
-        ws.send_text(json.dumps({"type": "touch", "touches": [{"id": 1, "x_mm": 50,
-                                                              "y_mm": 70, "force_n": 1.5}]}))  # fmt: skip
+        touch = {"id": 1, "x_mm": 50, "y_mm": 70, "force_n": 1.5}
+        ws.send_text(json.dumps({"type": "touch", "touches": [touch]}))
         assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
         ws.send_text("not json")
         ws.send_text(json.dumps({"type": "touch", "touches": "everywhere"}))

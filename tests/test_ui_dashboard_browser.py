@@ -108,8 +108,9 @@ class TouchScreen:
         self.box = page.locator("#skin").bounding_box()
 
     def _send(self, kind: str, points: list[tuple[float, float]]) -> None:
+        box = self.box
         touch_points = [
-            {"x": self.box["x"] + self.box["width"] * fx, "y": self.box["y"] + self.box["height"] * fy,
+            {"x": box["x"] + box["width"] * fx, "y": box["y"] + box["height"] * fy,
              "id": k, "force": 0.35, "radiusX": 4, "radiusY": 4}
             for k, (fx, fy) in enumerate(points)
         ]  # fmt: skip

@@ -946,6 +946,17 @@ def run(
         out.print(f"recording: {record}", highlight=False)
 
 
+def _has_desktop() -> bool:
+    """Whether a graphical browser can open: without a desktop, Python's ``webbrowser``
+    would start a text browser (lynx, w3m) in this terminal and take it over."""
+    import os
+    import sys
+
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
 def _run_dashboard(
     skin: str, robot: str, model: Path | None, *, host: str, port: int, token: str | None,
     open_browser: bool, ui_rate: float, trace: str | None, record: Path | None,
@@ -986,7 +997,7 @@ def _run_dashboard(
     def ready(url: str) -> None:
         console.print(f"wovenskin dashboard: [bold]{url}[/bold]  (Ctrl-C quits)")
         console.print(f"skin {runner.skin_spec}, robot {runner.robot_spec}", highlight=False)
-        if open_browser:
+        if open_browser and _has_desktop():
             webbrowser.open(url)
 
     serve(runner, host, port, token if needs_token(host) else token, on_ready=ready,
@@ -1062,6 +1073,30 @@ def bench_control(
 
     with err_console.status("benchmarking the control loop..."):
         result = run_control_benchmark(model, loop_seconds, streams, stream_seconds, ik_steps)
+    if json_out:
+        print(json.dumps(result.to_dict()))
+    else:
+        console.print(result.table())
+
+
+@bench_app.command("dashboard")
+@user_errors
+def bench_dashboard(
+    model: Path = typer.Option(None, help=MODEL_HELP),
+    idle_seconds: float = typer.Option(5.0, help="Seconds of page states counted while idle."),
+    swipes: int = typer.Option(6, help="Swipes sent over the socket (alternately up and down)."),
+    ui_rate: float = typer.Option(40.0, help="Page updates per second asked of the server."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Dashboard page rate and touch -> command -> motion latency, over its WebSocket."""
+    import json
+
+    from wovenskin.bench.dashboard import run_dashboard_benchmark
+
+    if swipes < 1 or idle_seconds <= 0:
+        raise ValueError("--swipes must be >= 1 and --idle-seconds positive")
+    with err_console.status("benchmarking the dashboard..."):
+        result = run_dashboard_benchmark(model, idle_seconds, swipes, ui_rate)
     if json_out:
         print(json.dumps(result.to_dict()))
     else:

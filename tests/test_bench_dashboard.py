@@ -1,0 +1,26 @@
+"""``wovenskin bench dashboard`` runs the real server and socket and reports its figures."""
+
+from __future__ import annotations
+
+import json
+
+from typer.testing import CliRunner
+
+from wovenskin.bench.dashboard import run_dashboard_benchmark
+from wovenskin.cli import app
+
+
+def test_the_benchmark_measures_the_page_rate_and_the_swipes() -> None:
+    result = run_dashboard_benchmark(idle_seconds=1.0, swipes=2)
+    assert result.states_per_s > 0 and result.state_bytes > 1000
+    assert result.swipes == 2 and len(result.commands) == 2
+    assert 0 <= result.moved <= result.recognised <= 2
+    if result.recognised:
+        assert 0 < result.command_median_ms <= result.command_p90_ms
+    assert "page states" in str(result.table().columns[0]._cells)
+    json.dumps(result.to_dict())
+
+
+def test_the_command_refuses_bad_options() -> None:
+    outcome = CliRunner().invoke(app, ["bench", "dashboard", "--swipes", "0"])
+    assert outcome.exit_code == 2 and "--swipes must be" in outcome.stderr

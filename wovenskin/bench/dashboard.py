@@ -1,0 +1,192 @@
+"""``wovenskin bench dashboard``: page update rate and touch-to-robot latency over the socket.
+
+Runs the real dashboard (:class:`~wovenskin.ui.dashboard.server.BackgroundServer` with the
+shipped recogniser, the simulated skin and arm) and talks to it as the page does, over its
+WebSocket, from a client in this process:
+
+- Page rate: state messages received per second while idle, the spread of the intervals
+  between them and their size.
+- Touch to robot: ``swipes`` one-finger swipes sent as touch messages (one per 10 ms, as
+  a pointer reports, 85 mm in 0.45 s, then the finger rests 0.6 s and lifts), alternately
+  up and down so the arm stays in its workspace.  For each, the wall time from the first
+  touch message to the first state naming the right command, and to the first state in
+  which the TCP moves (faster than 1 mm/s), as the client sees them: socket, physics,
+  conditioning, recogniser, dwell, safety, arm and the page's update period included.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+from rich.table import Table
+
+from wovenskin.control.session import open_session
+from wovenskin.ui.dashboard.runner import DashboardRunner
+from wovenskin.ui.dashboard.server import BackgroundServer
+
+MOVING_M_S = 1e-3
+SWIPE_MM = 85.0
+SWIPE_S = 0.45
+REST_S = 0.6
+POINTER_PERIOD_S = 0.01
+
+
+@dataclass
+class DashboardBenchResult:
+    ui_rate_hz: float
+    idle_seconds: float
+    states_per_s: float = 0.0
+    interval_median_ms: float = 0.0
+    interval_p90_ms: float = 0.0
+    state_bytes: int = 0
+    swipes: int = 0
+    recognised: int = 0
+    moved: int = 0
+    command_median_ms: float = 0.0
+    command_p90_ms: float = 0.0
+    motion_median_ms: float = 0.0
+    motion_p90_ms: float = 0.0
+    commands: list[str | None] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def table(self) -> Table:
+        table = Table(title="wovenskin bench dashboard: sim skin + sim TM5-900, over the socket")
+        table.add_column("figure")
+        table.add_column("value", justify="right")
+        table.add_row(
+            f"page states ({self.idle_seconds:g} s idle, asked {self.ui_rate_hz:g}/s)",
+            f"{self.states_per_s:.1f} /s",
+        )
+        table.add_row(
+            "interval between states",
+            f"median {self.interval_median_ms:.1f} ms, p90 {self.interval_p90_ms:.1f} ms",
+        )
+        table.add_row("state message size", f"{self.state_bytes / 1024:.1f} KiB")
+        table.add_row("swipes recognised / moved the arm", f"{self.recognised} / {self.moved}"
+                      f" of {self.swipes}")  # fmt: skip
+        table.add_row(
+            "first touch -> command (client sees it)",
+            f"median {self.command_median_ms:.0f} ms, p90 {self.command_p90_ms:.0f} ms",
+        )
+        table.add_row(
+            "first touch -> TCP moving (client sees it)",
+            f"median {self.motion_median_ms:.0f} ms, p90 {self.motion_p90_ms:.0f} ms",
+        )
+        return table
+
+
+class _Client:
+    """The page's side of the socket: a reader thread keeps the newest state and times."""
+
+    def __init__(self, url: str) -> None:
+        from websockets.sync.client import connect
+
+        self.ws = connect(url.replace("http://", "ws://").split("?")[0] + "ws")
+        self.states: list[tuple[float, dict, int]] = []
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+
+    def _read(self) -> None:
+        try:
+            for text in self.ws:
+                message = json.loads(text)
+                if message.get("type") == "state":
+                    with self._lock:
+                        self.states.append((time.perf_counter(), message, len(text)))
+        except Exception:  # the socket closed
+            return
+
+    def since(self, t0: float) -> list[tuple[float, dict, int]]:
+        with self._lock:
+            return [s for s in self.states if s[0] >= t0]
+
+    def send(self, message: dict) -> None:
+        self.ws.send(json.dumps(message))
+
+    def close(self) -> None:
+        self.ws.close()
+
+
+def _swipe(client: _Client, direction: int) -> float:
+    """Send one swipe's touch messages; returns the wall time of the first one."""
+    start_y = 115.0 if direction < 0 else 25.0  # up: from low on the skin toward row 0
+    steps = int(SWIPE_S / POINTER_PERIOD_S)
+    t0 = time.perf_counter()
+    for k in range(steps + 1):
+        y = start_y + direction * SWIPE_MM * k / steps
+        client.send({"type": "touch", "touches": [{"id": 1, "x_mm": 50.0, "y_mm": y,
+                                                   "force_n": 1.2}]})  # fmt: skip
+        time.sleep(max(0.0, t0 + (k + 1) * POINTER_PERIOD_S - time.perf_counter()))
+    time.sleep(REST_S)
+    client.send({"type": "touch", "touches": []})
+    return t0
+
+
+def run_dashboard_benchmark(
+    model: str | Path | None = None,
+    idle_seconds: float = 5.0,
+    swipes: int = 6,
+    ui_rate_hz: float = 40.0,
+) -> DashboardBenchResult:
+    def opener(skin: str, robot: str):
+        return open_session(skin, robot, model)
+
+    runner = DashboardRunner(opener, "sim:auto=0,seed=21", "sim", ui_rate_hz=ui_rate_hz)
+    server = BackgroundServer(runner)
+    url = server.start()
+    result = DashboardBenchResult(ui_rate_hz, idle_seconds)
+    try:
+        client = _Client(url)
+        try:
+            deadline = time.monotonic() + 20.0
+            while runner.latest() is None or runner.latest()["skin"]["calibrating"]:
+                if time.monotonic() > deadline:
+                    raise RuntimeError("the dashboard did not finish calibrating in 20 s")
+                time.sleep(0.05)
+            t0 = time.perf_counter()
+            time.sleep(idle_seconds)
+            idle = client.since(t0)
+            stamps = np.array([s[0] for s in idle])
+            if len(stamps) > 1:
+                intervals = np.diff(stamps) * 1000.0
+                result.states_per_s = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+                result.interval_median_ms = float(np.median(intervals))
+                result.interval_p90_ms = float(np.percentile(intervals, 90))
+                result.state_bytes = int(np.median([s[2] for s in idle]))
+            command_ms, motion_ms = [], []
+            for k in range(swipes):
+                direction = -1 if k % 2 == 0 else 1
+                expected = "swipe_up" if direction < 0 else "swipe_down"
+                start = _swipe(client, direction)
+                time.sleep(1.0)  # the arm decelerates, the command log settles
+                seen = client.since(start)
+                named = [t for t, s, _ in seen if s["recognition"]["command"] == expected]
+                moving = [t for t, s, _ in seen if s["robot"].get("tcp_speed", 0) > MOVING_M_S]
+                first = next((s["recognition"]["command"] for _, s, _ in seen
+                              if s["recognition"]["command"]), None)  # fmt: skip
+                result.commands.append(first)
+                if named:
+                    command_ms.append((named[0] - start) * 1000.0)
+                    if moving:
+                        motion_ms.append((moving[0] - start) * 1000.0)
+            result.swipes = swipes
+            result.recognised, result.moved = len(command_ms), len(motion_ms)
+            if command_ms:
+                result.command_median_ms = float(np.median(command_ms))
+                result.command_p90_ms = float(np.percentile(command_ms, 90))
+            if motion_ms:
+                result.motion_median_ms = float(np.median(motion_ms))
+                result.motion_p90_ms = float(np.percentile(motion_ms, 90))
+        finally:
+            client.close()
+    finally:
+        server.stop()
+    return result
