@@ -227,3 +227,33 @@ def test_a_token_guards_every_request_and_the_socket(runner) -> None:
         ws.receive_json()
     with fresh.websocket_connect("/ws?token=s3cret") as ws:
         assert ws.receive_json()["type"] == "scene"
+
+
+def test_a_serial_skin_drives_the_page_and_a_pulled_cable_stops_the_arm(tmp_path) -> None:
+    from wovenskin.skin.fake_device import FakeSkinDevice
+
+    device = FakeSkinDevice().start()
+    runner = DashboardRunner(_opener(tmp_path), f"serial:{device.port}", "sim")
+    try:
+        runner.start()
+        assert _wait(lambda: runner.latest() is not None and runner.latest()["skin"]["fps"] > 50)
+        state = runner.latest()
+        assert state["skin"]["virtual"] is False and state["autoplay"] is None
+        assert state["skin"]["counters"]["good"] > 0
+        runner.submit({"cmd": "perform", "gesture": "push"})
+        assert _wait(
+            lambda: any("only the simulated skin" in m for m in runner.latest()["messages"])
+        )
+        device.stop()  # the cable is pulled
+        assert _wait(lambda: runner.latest()["safety"]["stopped"], timeout=5.0)
+        assert runner.running
+    finally:
+        runner.close()
+        device.stop()
+
+
+def test_a_techman_arm_is_drawn_with_the_tm5_900_model() -> None:
+    from wovenskin.robots.techman import TechmanRobot
+
+    scene = ArmScene.for_robot(TechmanRobot("127.0.0.1"))  # built, never connected
+    assert scene is not None and len(scene.poses(INITIAL_Q)) == len(scene.shapes)

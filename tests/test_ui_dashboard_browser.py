@@ -162,13 +162,14 @@ def test_a_drawn_upward_swipe_drives_the_arm_along_its_tool_z(page) -> None:
     recognised = _wait_for(page, "window.wovenskin.state.recognition.command", 2.0)
     command = _state(page)["recognition"]["command"]
     assert recognised and command == "swipe_up", f"command {command!r}"
-    start = _state(page)["robot"]
     time.sleep(0.8)  # the finger rests on the skin: the command holds, the arm moves
     end = _state(page)["robot"]
     _save(page, "dashboard-swipe-up.png")
     page.mouse.up()
-    z_tool = np.asarray(start["tcp"]["z_axis"])
-    moved = np.asarray(end["tcp"]["pos"]) - np.asarray(start["tcp"]["pos"])
+    # From before the swipe (the page may read states late on a loaded machine; the arm
+    # then stops at the workspace floor 31 mm below the initial pose, tool z down).
+    z_tool = np.asarray(before["tcp"]["z_axis"])
+    moved = np.asarray(end["tcp"]["pos"]) - np.asarray(before["tcp"]["pos"])
     distance = float(np.linalg.norm(moved))
     assert distance > 0.02, f"the TCP moved only {distance * 1000:.1f} mm"
     assert float(moved @ z_tool) > 0.95 * distance  # along +z of the tool frame
@@ -226,4 +227,45 @@ def test_a_perform_button_makes_the_simulated_person_act(page) -> None:
     assert _wait_for(page, "window.wovenskin.state.recording", 2.0)
     page.click("#record")
     assert _wait_for(page, "!window.wovenskin.state.recording", 2.0)
+    assert page.problems == []
+
+
+def _rotates_about_tool_y(page, expected: str) -> None:
+    assert _wait_for(page, f"window.wovenskin.state.recognition.command === '{expected}'", 2.5), (
+        f"command {_state(page)['recognition']['command']!r}"
+    )
+    assert _wait_for(page, "window.wovenskin.state.robot.twist.slice(3).some(w => w !== 0)", 1.5)
+    robot = _state(page)["robot"]
+    twist = np.asarray(robot["twist"])
+    assert np.linalg.norm(twist[:3]) < 1e-3  # a rotation, not a translation
+    # rotate +y of the tool frame: the angular velocity lies along the tool's y axis
+    rotation = _rotation(robot["tcp"]["quat"])
+    assert float(twist[3:] @ rotation[:, 1]) > 0.95 * np.linalg.norm(twist[3:])
+
+
+def _rotation(quat) -> np.ndarray:
+    w, x, y, z = quat
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])  # fmt: skip
+
+
+def test_a_mouse_acting_as_two_fingers_swipes_up_with_two(page) -> None:
+    page.select_option("#fingers", "2")
+    _swipe_up(page)
+    _rotates_about_tool_y(page, "swipe_up_2f")
+    page.mouse.up()
+    assert page.problems == []
+
+
+def test_two_fingers_on_a_touch_screen_are_two_fingertips(page) -> None:
+    fingers = TouchScreen(page)  # two pointer ids, side by side 20 mm apart
+    fingers.swipe([(0.4, 0.8), (0.6, 0.8)], (0.0, -0.6))
+    try:
+        assert len(page.evaluate("window.wovenskin.state.skin.contacts")) >= 1
+        _rotates_about_tool_y(page, "swipe_up_2f")
+    finally:
+        fingers.lift()
     assert page.problems == []

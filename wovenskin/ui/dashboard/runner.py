@@ -140,6 +140,7 @@ class DashboardRunner:
             "gestures": [name for name in CLASS_NAMES if name != "invalid"],
             "scene": self.scene.describe() if self.scene is not None else None,
             "ui_rate_hz": self.ui_rate_hz,
+            "ports": _serial_ports(),
             "skin": self.skin_spec,
             "robot": self.robot_spec,
         }
@@ -336,3 +337,14 @@ class DashboardRunner:
     def _autoplay(self) -> bool | None:
         source = self._sim_source()
         return None if source is None else bool(source.autonomous)
+
+
+def _serial_ports() -> list[str]:
+    """Serial ports for the page's skin choices, likely skins first (none if listing fails)."""
+    from wovenskin.skin.ports import list_ports
+
+    try:
+        ports = list_ports()
+    except Exception:  # a port listing problem must not break the page
+        return []
+    return [p.device for p in sorted(ports, key=lambda p: not p.likely_skin)]

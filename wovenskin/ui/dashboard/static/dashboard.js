@@ -53,6 +53,14 @@ function onScene(message) {
   $("sources").textContent = `skin ${message.skin} · robot ${message.robot}`;
   $("skin-spec").value = message.skin;
   $("robot-spec").value = message.robot;
+  const choices = $("skin-choices");
+  for (const port of message.ports || []) {
+    if (![...choices.options].some((o) => o.value === `serial:${port}`)) {
+      const option = document.createElement("option");
+      option.value = `serial:${port}`;
+      choices.appendChild(option);
+    }
+  }
   buildPerformButtons(message.gestures);
   buildBars(message.classes);
   arm.build(message.scene);
