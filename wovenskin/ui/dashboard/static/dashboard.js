@@ -374,8 +374,9 @@ window.addEventListener("resize", sizeSkinCanvas);
 // ------------------------------------------------------------------ the 3D arm (z up, metres)
 const arm = (() => {
   const container = $("view");
-  const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-  renderer.setPixelRatio(window.devicePixelRatio || 1);
+  const renderer = new THREE.WebGLRenderer({ antialias: true });
+  renderer.setPixelRatio(Math.min(2, window.devicePixelRatio || 1));
+  let dirty = true; // draw only when a state arrived or the camera moved: idle pages cost nothing
   renderer.outputColorSpace = THREE.SRGBColorSpace;
   container.appendChild(renderer.domElement);
   const scene = new THREE.Scene();
@@ -386,6 +387,7 @@ const arm = (() => {
   const controls = new THREE.OrbitControls(camera, renderer.domElement);
   controls.target.set(0.2, 0, 0.3);
   controls.update();
+  controls.addEventListener("change", () => { dirty = true; });
   scene.add(new THREE.HemisphereLight(0xdfe8ff, 0x303030, 1.6));
   const sun = new THREE.DirectionalLight(0xffffff, 1.6);
   sun.position.set(2, -1, 3);
@@ -416,6 +418,7 @@ const arm = (() => {
   }
 
   function build(description) {
+    dirty = true;
     for (const m of meshes) scene.remove(m);
     meshes.length = 0;
     if (patch) { scene.remove(patch); patch = null; }
@@ -439,6 +442,7 @@ const arm = (() => {
 
   function update(robot) {
     if (!robot || !robot.connected) return;
+    dirty = true;
     if (robot.geoms && robot.geoms.length === meshes.length) {
       robot.geoms.forEach((p, k) => {
         meshes[k].position.set(p[0], p[1], p[2]);
@@ -480,8 +484,9 @@ const arm = (() => {
       renderer.setSize(w, h, false);
       renderer.domElement.style.width = "100%"; renderer.domElement.style.height = "100%";
       camera.aspect = w / Math.max(1, h); camera.updateProjectionMatrix();
+      dirty = true;
     }
-    renderer.render(scene, camera);
+    if (dirty) { renderer.render(scene, camera); dirty = false; page.rendered = (page.rendered || 0) + 1; }
     requestAnimationFrame(render);
   }
   requestAnimationFrame(render);
