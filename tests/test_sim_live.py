@@ -211,3 +211,35 @@ def test_the_lookahead_option_is_checked():
     assert open_source("sim:lookahead=0.05").lookahead_s == 0.05
     with pytest.raises(ValueError, match="lookahead"):
         open_source("sim:lookahead=0")
+
+
+def test_timestamped_touches_keep_their_timing_however_bunched_they_arrive():
+    from wovenskin.sim.live import Fingertip
+
+    source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
+    source.start()
+    try:
+        rest = _frames_for(source, 0.4).mean(axis=0)
+        # 0.4 s of a finger sliding from row 8 to row 1 (y 119 -> 21 mm), sent all at once
+        for k in range(41):
+            y = 119.0 - 98.0 * k / 40
+            source.set_touches({1: Fingertip(50.0, y, 1.5)}, client_t=100.0 + 0.01 * k)
+        frames = _frames_for(source, 0.8) - rest
+        source.set_touches({}, client_t=100.5)
+        peaks = np.array([np.unravel_index(np.argmax(f), f.shape)[0] for f in frames])
+        strong = np.array([f.max() for f in frames]) > 0.3 * frames.max()
+        rows = peaks[strong]
+        assert rows[0] >= 7 and rows[-1] <= 2  # from low to high on the skin
+        first, last = np.flatnonzero(rows <= 6)[0], np.flatnonzero(rows >= 3)[-1]
+        assert 40 <= last - first <= 100  # ~0.3 s of frames between rows 6 and 3: not a jump
+        assert np.all(np.diff(rows) <= 1)  # it never goes back down
+    finally:
+        source.close()
+
+
+def test_a_touch_time_must_be_finite():
+    from wovenskin.sim.live import Fingertip
+
+    source = SimulatedSkinSource(seed=1, autonomous=False)
+    with pytest.raises(ValueError, match="finite"):
+        source.set_touches({1: Fingertip(1.0, 1.0, 1.0)}, client_t=float("nan"))

@@ -18,7 +18,12 @@ from wovenskin.sim.live import Fingertip
 from wovenskin.skin.layout import SkinLayout
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.scene import ArmScene
-from wovenskin.ui.dashboard.server import create_app, needs_token, parse_touches
+from wovenskin.ui.dashboard.server import (
+    create_app,
+    needs_token,
+    parse_touch_message,
+    parse_touches,
+)
 
 # -- scene ------------------------------------------------------------------------------
 
@@ -187,6 +192,18 @@ def test_parse_touches_accepts_only_well_formed_touches() -> None:
     for bad in ({}, [1], [{"id": 1}], [{"id": 1, "x_mm": "nan", "y_mm": 0, "force_n": 1}]):
         with pytest.raises(ValueError):
             parse_touches(bad)
+
+
+def test_touch_messages_carry_one_or_several_timed_samples() -> None:
+    tip = {"id": 1, "x_mm": 5, "y_mm": 6, "force_n": 1}
+    assert parse_touch_message({"touches": [tip]}) == [(None, {1: Fingertip(5.0, 6.0, 1.0)})]
+    message = {"samples": [{"t": 1.5, "touches": [tip]}, {"t": 1.6, "touches": []}]}
+    samples = parse_touch_message(message)
+    assert [t for t, _ in samples] == [1.5, 1.6] and samples[1][1] == {}
+    for bad in ({"samples": []}, {"samples": "x"}, {"samples": [{"t": "soon", "touches": []}]},
+                {"samples": [{"touches": [tip]}] * 65}):  # fmt: skip
+        with pytest.raises(ValueError):
+            parse_touch_message(bad)
 
 
 def test_only_loopback_addresses_go_without_a_token() -> None:

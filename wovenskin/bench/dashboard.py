@@ -6,12 +6,13 @@ WebSocket, from a client in this process:
 
 - Page rate: state messages received per second while idle, the spread of the intervals
   between them and their size.
-- Touch to robot: ``swipes`` one-finger swipes sent as touch messages (one per 10 ms, as
-  a pointer reports, 85 mm in 0.45 s, then the finger rests 0.6 s and lifts), alternately
-  up and down so the arm stays in its workspace.  For each, the wall time from the first
-  touch message to the first state naming the right command, and to the first state in
-  which the TCP moves (faster than 1 mm/s), as the client sees them: socket, physics,
-  conditioning, recogniser, dwell, safety, arm and the page's update period included.
+- Touch to robot: ``swipes`` one-finger swipes sent as timestamped touch messages (one
+  per 10 ms, as a pointer reports, 85 mm in 0.45 s, then the finger rests 0.6 s and
+  lifts), alternately up and down so the arm stays in its workspace.  For each, the wall
+  time from the first touch message to the first state naming the right command, and to
+  the first state in which the TCP moves (faster than 1 mm/s), as the client sees them:
+  socket, touch jitter buffer, physics, conditioning, recogniser, dwell, safety, arm and
+  the page's update period included.
 """
 
 from __future__ import annotations
@@ -122,11 +123,11 @@ def _swipe(client: _Client, direction: int) -> float:
     t0 = time.perf_counter()
     for k in range(steps + 1):
         y = start_y + direction * SWIPE_MM * k / steps
-        client.send({"type": "touch", "touches": [{"id": 1, "x_mm": 50.0, "y_mm": y,
-                                                   "force_n": 1.2}]})  # fmt: skip
+        touch = {"id": 1, "x_mm": 50.0, "y_mm": y, "force_n": 1.2}
+        client.send({"type": "touch", "t": time.perf_counter(), "touches": [touch]})
         time.sleep(max(0.0, t0 + (k + 1) * POINTER_PERIOD_S - time.perf_counter()))
     time.sleep(REST_S)
-    client.send({"type": "touch", "touches": []})
+    client.send({"type": "touch", "t": time.perf_counter(), "touches": []})
     return t0
 
 

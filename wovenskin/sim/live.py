@@ -61,6 +61,7 @@ _TOUCH_CHUNK_S = 0.01  # outside fingertips are rendered in pieces this long
 _TOUCH_RAMP_S = 0.02  # an outside fingertip reaches its force (or lifts) over this time
 MAX_TOUCH_FORCE_N = 10.0
 MAX_TOUCHES = 10
+TOUCH_JITTER_S = 0.03  # timestamped outside touches play this far behind their first sample
 _VIRTUAL_PAD = Pad(width_mm=9.0, growth_mm=3.0, aspect=1.15)
 
 
@@ -82,12 +83,21 @@ class Fingertip:
 
 
 @dataclass
+class _TouchSample:
+    """The outside fingertips from one moment on, at ``t`` on the stream clock."""
+
+    t: float
+    touches: dict[int, Fingertip]
+
+
+@dataclass
 class _Finger:
     x: float  # where the last rendered frame put it
     y: float
     force: float
     target: Fingertip
     rate: float = 0.0  # N per frame toward the target force
+    anchor_t: float = 0.0  # stream time of the sample that last placed it
 
     def aim(self, target: Fingertip, frames_per_ramp: float) -> None:
         if target.force_n != self.target.force_n or self.rate == 0.0:
@@ -171,6 +181,8 @@ class SimulatedSkinSource:
         self._clock_origin = 0.0  # wall time at which stream time 0 was (shifted by pauses)
         self._paused_at = 0.0
         self._fingers: dict[int, _Finger] = {}  # outside fingertips (set_touches)
+        self._touch_timeline: deque[_TouchSample] = deque()  # samples not yet reached
+        self._touch_offset: float | None = None  # stream time = client time + offset
 
     # -- construction from a spec -------------------------------------------------------------
     @classmethod
@@ -315,35 +327,52 @@ class SimulatedSkinSource:
             self._requests.append(name)
             self._cond.notify_all()
 
-    def set_touches(self, touches: dict[int, Fingertip]) -> None:
-        """Put outside fingertips on the skin: ``{pointer id: Fingertip}``, replacing the last
-        call's.  Fingertips missing from ``touches`` lift off; new ones land.  Positions
-        may lie off the sensing area (nothing is sensed there); forces are capped at
-        :data:`MAX_TOUCH_FORCE_N`.  Raises ``ValueError`` for more than
-        :data:`MAX_TOUCHES` fingertips or for values that are not fingertips."""
+    def set_touches(self, touches: dict[int, Fingertip], client_t: float | None = None) -> None:
+        """Put outside fingertips on the skin: ``{pointer id: Fingertip}``, replacing the
+        previous sample's.  Fingertips missing from ``touches`` lift off; new ones land.
+
+        ``client_t`` (seconds on the sender's clock, e.g. a browser event's timestamp)
+        keeps the sender's timing: samples are played :data:`TOUCH_JITTER_S` behind the
+        first sample of a touch, at their own spacing, however bunched they arrive, and a
+        fingertip slides in a straight line from one sample to the next.  A sample later
+        than that delays the rest of the touch rather than making the finger jump.  Without
+        ``client_t`` a sample applies at the next rendered frame.  Positions may lie off
+        the sensing area (nothing is sensed there); forces are capped at
+        :data:`MAX_TOUCH_FORCE_N`.  Raises ``ValueError`` for more than :data:`MAX_TOUCHES`
+        fingertips, values that are not fingertips or a non-finite ``client_t``."""
         if len(touches) > MAX_TOUCHES:
             raise ValueError(f"at most {MAX_TOUCHES} fingertips, got {len(touches)}")
         for key, tip in touches.items():
             if not isinstance(tip, Fingertip):
                 raise ValueError(f"touch {key!r} is not a Fingertip: {tip!r}")
-        ramp = _TOUCH_RAMP_S * self._fs
+        if client_t is not None and not np.isfinite(client_t):
+            raise ValueError(f"touch time must be finite, got {client_t}")
+        capped = {
+            key: replace(tip, force_n=min(float(tip.force_n), MAX_TOUCH_FORCE_N))
+            for key, tip in touches.items()
+        }
         with self._cond:
-            for key, finger in self._fingers.items():
-                if key not in touches:
-                    finger.aim(replace(finger.target, force_n=0.0), ramp)
-            for key, tip in touches.items():
-                tip = replace(tip, force_n=min(float(tip.force_n), MAX_TOUCH_FORCE_N))
-                finger = self._fingers.get(key)
-                if finger is None:
-                    finger = self._fingers[key] = _Finger(tip.x_mm, tip.y_mm, 0.0, tip)
-                finger.aim(tip, ramp)
+            head = self._rendered / self._fs  # stream time of the next frame to render
+            last = self._touch_timeline[-1].t if self._touch_timeline else head
+            if client_t is None:
+                t = max(head, last)
+            else:
+                idle = not self._fingers and not self._touch_timeline
+                if self._touch_offset is None or idle:  # a new touch: set the delay
+                    self._touch_offset = head + TOUCH_JITTER_S - client_t
+                t = client_t + self._touch_offset
+                if t < head:  # later than the buffer allows: delay the rest of the touch
+                    self._touch_offset += head - t
+                    t = head
+                t = max(t, last)
+            self._touch_timeline.append(_TouchSample(t, capped))
             self._cond.notify_all()
 
     @property
     def touching(self) -> bool:
-        """Whether outside fingertips are on the skin (or still lifting off)."""
+        """Whether outside fingertips are on the skin (or still lifting off or queued)."""
         with self._cond:
-            return bool(self._fingers)
+            return bool(self._fingers or self._touch_timeline)
 
     @property
     def events(self) -> list[StreamEvent]:
@@ -411,7 +440,7 @@ class SimulatedSkinSource:
         upcoming = self._upcoming
         chunk = int(round(min(_IDLE_CHUNK_S, self.lookahead_s) * fs))
         with self._cond:
-            touching = bool(self._fingers)
+            touching = bool(self._fingers or self._touch_timeline)
         if touching:  # outside fingertips: the person waits until they have lifted
             if request is not None:
                 with self._cond:
@@ -453,20 +482,55 @@ class SimulatedSkinSource:
         return frames
 
     def _render_touches(self, n: int) -> np.ndarray:
-        """``n`` frames of the outside fingertips: each slides in a straight line to its
-        newest position and ramps its force toward the newest force; lifted ones go."""
-        k = np.arange(1, n + 1)
-        tracks = []
+        """``n`` frames of the outside fingertips: samples take effect at their stream time,
+        each fingertip slides linearly toward its position in the next sample and ramps its
+        force toward the newest force; lifted ones go once their force is gone."""
+        fs = self._fs
+        ramp = _TOUCH_RAMP_S * fs
+        paths: dict[int, np.ndarray] = {}  # finger -> (n, 3): x, y, force per frame
         with self._cond:
-            for key, finger in list(self._fingers.items()):
-                target = finger.target
-                x = finger.x + (target.x_mm - finger.x) * k / n
-                y = finger.y + (target.y_mm - finger.y) * k / n
-                reach = finger.rate * k
-                force = finger.force + np.clip(target.force_n - finger.force, -reach, reach)
-                finger.x, finger.y, finger.force = float(x[-1]), float(y[-1]), float(force[-1])
-                if target.force_n == 0.0 and finger.force <= 0.0:
+            for k in range(n):
+                t = (self._rendered + k) / fs
+                while self._touch_timeline and self._touch_timeline[0].t <= t:
+                    self._apply_sample(self._touch_timeline.popleft(), ramp)
+                upcoming = self._touch_timeline[0] if self._touch_timeline else None
+                for key, finger in self._fingers.items():
+                    nxt = upcoming.touches.get(key) if upcoming is not None else None
+                    if nxt is not None and upcoming.t > finger.anchor_t:
+                        f = (t - finger.anchor_t) / (upcoming.t - finger.anchor_t)
+                        f = min(max(f, 0.0), 1.0)
+                        x = finger.target.x_mm + (nxt.x_mm - finger.target.x_mm) * f
+                        y = finger.target.y_mm + (nxt.y_mm - finger.target.y_mm) * f
+                    else:
+                        x, y = finger.target.x_mm, finger.target.y_mm
+                    step = float(np.clip(finger.target.force_n - finger.force, -finger.rate,
+                                         finger.rate))  # fmt: skip
+                    finger.x, finger.y, finger.force = x, y, max(0.0, finger.force + step)
+                    path = paths.setdefault(key, np.zeros((n, 3)))
+                    path[:k] = (x, y, 0.0)  # before it landed: hovering where it lands
+                    path[k] = (x, y, finger.force)
+                for key in [k2 for k2, f2 in self._fingers.items()
+                            if f2.target.force_n == 0.0 and f2.force <= 0.0]:  # fmt: skip
                     del self._fingers[key]
-                major, minor = _VIRTUAL_PAD.axes_mm(force)
-                tracks.append(ContactTrack(x, y, force, major, minor, kind="fingertip"))
+            for key, path in paths.items():  # fingers gone mid-chunk: no force after
+                last = np.flatnonzero(path[:, 2] > 0)
+                if key not in self._fingers and len(last):
+                    path[last[-1] + 1 :, 2] = 0.0
+        tracks = []
+        for path in paths.values():
+            major, minor = _VIRTUAL_PAD.axes_mm(path[:, 2])
+            tracks.append(ContactTrack(path[:, 0], path[:, 1], path[:, 2], major, minor))
         return self._model.render(tracks, n)
+
+    def _apply_sample(self, sample: _TouchSample, ramp: float) -> None:
+        """Make ``sample`` the fingertips' targets (caller holds the lock)."""
+        for key, finger in self._fingers.items():
+            if key not in sample.touches:
+                finger.aim(replace(finger.target, force_n=0.0), ramp)
+                finger.anchor_t = sample.t
+        for key, tip in sample.touches.items():
+            finger = self._fingers.get(key)
+            if finger is None:
+                finger = self._fingers[key] = _Finger(tip.x_mm, tip.y_mm, 0.0, tip)
+            finger.aim(tip, ramp)
+            finger.anchor_t = sample.t

@@ -151,15 +151,16 @@ class DashboardRunner:
             raise ValueError(f"unknown dashboard command: {str(command)[:80]}")
         self._commands.put(command)
 
-    def touch(self, touches: dict[int, Any]) -> None:
-        """Put virtual fingertips on the simulated skin (``{id: Fingertip}``)."""
+    def touch(self, touches: dict[int, Any], client_t: float | None = None) -> None:
+        """Put virtual fingertips on the simulated skin (``{id: Fingertip}``), at
+        ``client_t`` on the page's clock when given (see ``SimulatedSkinSource.set_touches``)."""
         source = self._sim_source()
         if source is None:
             raise ValueError("the virtual skin needs the simulated skin (skin source sim)")
         if touches and not self._touching:
             self.latency = TouchLatency(touch_wall=time.monotonic())
         self._touching = bool(touches)
-        source.set_touches(touches)
+        source.set_touches(touches, client_t)
 
     # -- the session thread
 

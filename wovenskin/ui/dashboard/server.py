@@ -5,9 +5,11 @@
 page never loads anything from the internet), ``/ws`` the WebSocket.  On the socket the
 server first sends the scene (``{"type": "scene"}``), then the runner's newest state at the
 page rate (latest only: a slow browser skips frames, the session never waits for it).  The
-browser sends ``{"type": "command", "cmd": ...}`` and ``{"type": "touch", "touches":
-[{"id", "x_mm", "y_mm", "force_n"}, ...]}``; a bad message gets one ``{"type": "error"}``
-line back and changes nothing.
+browser sends ``{"type": "command", "cmd": ...}`` and ``{"type": "touch", "t": seconds,
+"touches": [{"id", "x_mm", "y_mm", "force_n"}, ...]}`` (or several such ``samples`` at
+once); the simulated skin plays timestamped touches at their own spacing, so a bunched
+delivery does not distort a gesture.  A bad message gets one ``{"type": "error"}`` line
+back and changes nothing.
 
 Bound to a loopback address the server is open to this machine's users; bound elsewhere it
 requires a token (``?token=`` on the page's address, then a cookie), compared in constant
@@ -72,6 +74,30 @@ def parse_touches(items: object) -> dict[int, Fingertip]:
             raise ValueError("a touch needs numeric id, x_mm, y_mm and force_n") from None
         touches[key] = Fingertip(*values)
     return touches
+
+
+def parse_touch_message(message: dict) -> list[tuple[float | None, dict[int, Fingertip]]]:
+    """The ``(client time or None, touches)`` samples of one touch message; ValueError if bad.
+
+    ``t`` is the sample's time in seconds on the page's clock (``event.timeStamp / 1000``);
+    ``samples`` carries several (a pointer's coalesced events) in time order."""
+    samples = message.get("samples")
+    if samples is None:
+        samples = [{"t": message.get("t"), "touches": message.get("touches")}]
+    if not isinstance(samples, list) or not 0 < len(samples) <= 64:
+        raise ValueError("samples must be a list of 1-64 samples")
+    out = []
+    for sample in samples:
+        if not isinstance(sample, dict):
+            raise ValueError("each sample must be an object")
+        t = sample.get("t")
+        if t is not None:
+            try:
+                t = float(t)
+            except (TypeError, ValueError):
+                raise ValueError("a sample's t must be a number of seconds") from None
+        out.append((t, parse_touches(sample.get("touches"))))
+    return out
 
 
 def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
@@ -155,8 +181,9 @@ def _handle(runner: DashboardRunner, text: str) -> dict | None:
         if not isinstance(message, dict):
             raise ValueError("a message must be a JSON object")
         kind = message.get("type")
-        if kind == "touch":
-            runner.touch(parse_touches(message.get("touches")))
+        if kind == "touch":  # {"touches": [...], "t": s} or {"samples": [{"t", "touches"}]}
+            for client_t, touches in parse_touch_message(message):
+                runner.touch(touches, client_t)
         elif kind == "command":
             runner.submit({k: v for k, v in message.items() if k != "type"})
         elif kind == "ping":

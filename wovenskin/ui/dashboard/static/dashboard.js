@@ -214,24 +214,32 @@ function touchList() {
   return tips;
 }
 
-function sendTouches() { send({ type: "touch", touches: touchList() }); }
+// Each message carries the events' own times (seconds on the page's clock): the server
+// plays the samples at that spacing, so a busy page or network cannot distort a gesture.
+function sendTouches(samples) { send({ type: "touch", samples }); }
+const sample = (event) => ({ t: event.timeStamp / 1000, touches: touchList() });
 
 skinCanvas.addEventListener("pointerdown", (event) => {
   event.preventDefault();
   skinCanvas.setPointerCapture(event.pointerId);
   if (event.pointerType === "mouse") spread = null;
   pointers.set(event.pointerId, { ...pointerMm(event), pressure: pressureOf(event), mouse: event.pointerType === "mouse" });
-  sendTouches();
+  sendTouches([sample(event)]);
 });
 skinCanvas.addEventListener("pointermove", (event) => {
   const p = pointers.get(event.pointerId);
   if (!p) return;
-  Object.assign(p, pointerMm(event), { pressure: pressureOf(event) });
-  sendTouches();
+  const events = event.getCoalescedEvents ? event.getCoalescedEvents() : [];
+  const samples = [];
+  for (const e of events.length ? events : [event]) { // every sample the device gave
+    Object.assign(p, pointerMm(e), { pressure: pressureOf(e) });
+    samples.push(sample(e));
+  }
+  sendTouches(samples.slice(-64));
 });
 for (const kind of ["pointerup", "pointercancel", "lostpointercapture"]) {
   skinCanvas.addEventListener(kind, (event) => {
-    if (pointers.delete(event.pointerId)) sendTouches();
+    if (pointers.delete(event.pointerId)) sendTouches([sample(event)]);
   });
 }
 skinCanvas.addEventListener("wheel", (event) => { // pinch a mouse hand
@@ -240,7 +248,7 @@ skinCanvas.addEventListener("wheel", (event) => { // pinch a mouse hand
   event.preventDefault();
   const [low, high, start] = SPREAD[fingers];
   spread = Math.max(low, Math.min(high, (spread ?? start) + (event.deltaY > 0 ? -3 : 3)));
-  sendTouches();
+  sendTouches([sample(event)]);
 }, { passive: false });
 
 // ------------------------------------------------------------------ recognition
