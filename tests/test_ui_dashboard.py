@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from stand_ins import ContactMeans
+from starlette.websockets import WebSocketDisconnect
 
 from wovenskin.control.session import open_session
 from wovenskin.gestures import CLASS_NAMES
@@ -240,7 +241,7 @@ def test_a_token_guards_every_request_and_the_socket(runner) -> None:
     assert client.get("/?token=s3cret").status_code == 200
     assert client.get("/api/state").status_code == 200  # the cookie set by the first visit
     fresh = TestClient(create_app(runner, token="s3cret"))
-    with pytest.raises(Exception), fresh.websocket_connect("/ws") as ws:  # noqa: B017
+    with pytest.raises(WebSocketDisconnect), fresh.websocket_connect("/ws") as ws:
         ws.receive_json()
     with fresh.websocket_connect("/ws?token=s3cret") as ws:
         assert ws.receive_json()["type"] == "scene"
@@ -274,3 +275,14 @@ def test_a_techman_arm_is_drawn_with_the_tm5_900_model() -> None:
 
     scene = ArmScene.for_robot(TechmanRobot("127.0.0.1"))  # built, never connected
     assert scene is not None and len(scene.poses(INITIAL_Q)) == len(scene.shapes)
+
+
+def test_sockets_from_another_site_are_refused(runner) -> None:
+    client = TestClient(create_app(runner))
+    with (
+        pytest.raises(WebSocketDisconnect),
+        client.websocket_connect("/ws", headers={"origin": "http://evil.example"}) as ws,
+    ):
+        ws.receive_json()
+    with client.websocket_connect("/ws", headers={"origin": "http://testserver"}) as ws:
+        assert ws.receive_json()["type"] == "scene"

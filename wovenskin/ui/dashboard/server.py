@@ -13,7 +13,8 @@ back and changes nothing.
 
 Bound to a loopback address the server is open to this machine's users; bound elsewhere it
 requires a token (``?token=`` on the page's address, then a cookie), compared in constant
-time, on every request and socket.  :func:`serve` runs uvicorn until Ctrl-C.
+time, on every request and socket.  Sockets opened by another site's page (a foreign
+``Origin``) are refused either way.  :func:`serve` runs uvicorn until Ctrl-C.
 """
 
 from __future__ import annotations
@@ -57,6 +58,18 @@ def _token_ok(expected: str | None, given: str | None) -> bool:
     if expected is None:
         return True
     return given is not None and hmac.compare_digest(expected.encode(), given.encode())
+
+
+def same_origin(origin: str | None, host: str | None) -> bool:
+    """Whether a WebSocket comes from our own page (or from a client that is no browser).
+
+    Browsers let any site open a WebSocket to 127.0.0.1 and send its ``Origin``: without
+    this check a web page open in the same browser could drive the robot."""
+    if origin is None:
+        return True
+    from urllib.parse import urlsplit
+
+    return host is not None and urlsplit(origin).netloc.lower() == host.lower()
 
 
 def parse_touches(items: object) -> dict[int, Fingertip]:
@@ -132,6 +145,9 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
         given = ws.query_params.get("token") or ws.cookies.get(COOKIE)
         if not _token_ok(token, given):
             await ws.close(code=4401)
+            return
+        if not same_origin(ws.headers.get("origin"), ws.headers.get("host")):
+            await ws.close(code=4403)  # another site's page in the user's browser
             return
         await ws.accept()
         replies: asyncio.Queue[str] = asyncio.Queue(maxsize=64)
