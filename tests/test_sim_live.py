@@ -243,3 +243,24 @@ def test_a_touch_time_must_be_finite():
     source = SimulatedSkinSource(seed=1, autonomous=False)
     with pytest.raises(ValueError, match="finite"):
         source.set_touches({1: Fingertip(1.0, 1.0, 1.0)}, client_t=float("nan"))
+
+
+def test_a_lifted_outside_fingertip_is_sensed_for_a_moment_then_goes():
+    from wovenskin.sim.live import Fingertip
+
+    source = SimulatedSkinSource(seed=2, autonomous=False, lookahead_s=0.03)
+    source.start()
+    try:
+        _frames_for(source, 0.3)
+        source.set_touches({1: Fingertip(40.0, 60.0, 1.0)}, client_t=5.0)
+        _frames_for(source, 0.2)
+        source.set_touches({}, client_t=5.2)
+        lifted_at = time.monotonic()
+        while source.touching and time.monotonic() - lifted_at < 2.0:
+            _frames_for(source, 0.01)
+        gone_after = time.monotonic() - lifted_at
+        hover = source.physics.hover_tau_s
+        assert not source.touching
+        assert gone_after > 2 * hover  # the hover tail (4 time constants) was rendered
+    finally:
+        source.close()

@@ -399,3 +399,29 @@ def test_response_is_bounded_for_any_contact(x, y, force, a, ratio, angle):
     r = model.pressure_response([track], 2)
     assert np.isfinite(r).all() and r.min() >= 0.0
     assert r.max() <= model._sub_weight.max() + 1e-9
+
+
+def test_an_explicit_presence_renders_like_the_one_derived_from_the_force():
+    physics = replace(SkinPhysics().without_noise(), proximity_fraction=0.05)
+    n, hover = 60, physics.hover_tau_s * FS
+    force = np.zeros(n)
+    force[20:40] = 1.0
+    x, y = np.full(n, 45.0), np.full(n, 63.0)
+    derived = ContactTrack(x, y, force, 5.0, 4.0)
+    frames = np.arange(n)
+    distance = np.maximum(np.maximum(20 - frames, frames - 39), 0)
+    explicit = ContactTrack(x, y, force, 5.0, 4.0, presence=np.exp(-distance / hover))
+    a = SkinModel(physics, LAYOUT, seed=3).render([derived], n)
+    b = SkinModel(physics, LAYOUT, seed=3).render([explicit], n)
+    np.testing.assert_allclose(a, b, atol=1e-6)
+    rest = SkinModel(physics, LAYOUT, seed=3).render([], n)
+    assert (b[15] - rest[15]).max() > 0  # sensed before landing: the fringe field
+    none = ContactTrack(x, y, force, 5.0, 4.0, presence=np.zeros(n))
+    c = SkinModel(physics, LAYOUT, seed=3).render([none], n)
+    np.testing.assert_allclose(c[:20], rest[:20], atol=1e-6)  # no presence: nothing before
+
+
+@pytest.mark.parametrize("presence", [np.full(5, 1.5), np.full(4, 0.5), np.full(5, np.nan)])
+def test_a_bad_presence_is_refused(presence):
+    with pytest.raises(ValueError, match="presence"):
+        ContactTrack(np.zeros(5), np.zeros(5), np.ones(5), 5.0, 4.0, presence=presence)

@@ -7,7 +7,8 @@ WebSocket, from a client in this process:
 - Page rate: state messages received per second while idle, the spread of the intervals
   between them and their size.
 - Touch to robot: ``swipes`` one-finger swipes sent as timestamped touch messages (one
-  per 10 ms, as a pointer reports, 85 mm in 0.45 s, then the finger rests 0.6 s and
+  per 10 ms, as a pointer reports, 85 mm in 0.45 s with a minimum-jerk speed profile, then
+  the finger rests 0.6 s and
   lifts), alternately up and down so the arm stays in its workspace.  For each, the wall
   time from the first touch message to the first state naming the right command, and to
   the first state in which the TCP moves (faster than 1 mm/s), as the client sees them:
@@ -27,6 +28,7 @@ import numpy as np
 from rich.table import Table
 
 from wovenskin.control.session import open_session
+from wovenskin.sim.motion import minimum_jerk
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.server import BackgroundServer
 
@@ -35,6 +37,8 @@ SWIPE_MM = 85.0
 SWIPE_S = 0.45
 REST_S = 0.6
 POINTER_PERIOD_S = 0.01
+FORCE_N = 1.2  # a firm sliding touch (people slide with 0.25-2 N)
+X_MM = 50.0
 
 
 @dataclass
@@ -86,10 +90,8 @@ class DashboardBenchResult:
 class _Client:
     """The page's side of the socket: a reader thread keeps the newest state and times."""
 
-    def __init__(self, url: str) -> None:
-        from websockets.sync.client import connect
-
-        self.ws = connect(url.replace("http://", "ws://").split("?")[0] + "ws")
+    def __init__(self, ws) -> None:
+        self.ws = ws
         self.states: list[tuple[float, dict, int]] = []
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._read, daemon=True)
@@ -112,18 +114,16 @@ class _Client:
     def send(self, message: dict) -> None:
         self.ws.send(json.dumps(message))
 
-    def close(self) -> None:
-        self.ws.close()
-
 
 def _swipe(client: _Client, direction: int) -> float:
     """Send one swipe's touch messages; returns the wall time of the first one."""
     start_y = 115.0 if direction < 0 else 25.0  # up: from low on the skin toward row 0
     steps = int(SWIPE_S / POINTER_PERIOD_S)
+    progress = minimum_jerk(steps + 1)  # a hand's bell-shaped speed profile
     t0 = time.perf_counter()
     for k in range(steps + 1):
-        y = start_y + direction * SWIPE_MM * k / steps
-        touch = {"id": 1, "x_mm": 50.0, "y_mm": y, "force_n": 1.2}
+        y = start_y + direction * SWIPE_MM * float(progress[k])
+        touch = {"id": 1, "x_mm": X_MM, "y_mm": y, "force_n": FORCE_N}
         client.send({"type": "touch", "t": time.perf_counter(), "touches": [touch]})
         time.sleep(max(0.0, t0 + (k + 1) * POINTER_PERIOD_S - time.perf_counter()))
     time.sleep(REST_S)
@@ -144,9 +144,11 @@ def run_dashboard_benchmark(
     server = BackgroundServer(runner)
     url = server.start()
     result = DashboardBenchResult(ui_rate_hz, idle_seconds)
+    from websockets.sync.client import connect
+
     try:
-        client = _Client(url)
-        try:
+        with connect(url.replace("http://", "ws://").split("?")[0] + "ws") as ws:
+            client = _Client(ws)
             deadline = time.monotonic() + 20.0
             while runner.latest() is None or runner.latest()["skin"]["calibrating"]:
                 if time.monotonic() > deadline:
@@ -186,8 +188,6 @@ def run_dashboard_benchmark(
             if motion_ms:
                 result.motion_median_ms = float(np.median(motion_ms))
                 result.motion_p90_ms = float(np.percentile(motion_ms, 90))
-        finally:
-            client.close()
     finally:
         server.stop()
     return result

@@ -61,6 +61,7 @@ _TOUCH_CHUNK_S = 0.01  # outside fingertips are rendered in pieces this long
 _TOUCH_RAMP_S = 0.02  # an outside fingertip reaches its force (or lifts) over this time
 MAX_TOUCH_FORCE_N = 10.0
 MAX_TOUCHES = 10
+_HOVER_TAIL_TAUS = 4.0  # a lifted outside fingertip is sensed for this many hover constants
 TOUCH_JITTER_S = 0.03  # timestamped outside touches play this far behind their first sample
 _VIRTUAL_PAD = Pad(width_mm=9.0, growth_mm=3.0, aspect=1.15)
 
@@ -98,6 +99,7 @@ class _Finger:
     target: Fingertip
     rate: float = 0.0  # N per frame toward the target force
     anchor_t: float = 0.0  # stream time of the sample that last placed it
+    lifted_frames: int = 0  # frames since its force reached zero (the hover tail)
 
     def aim(self, target: Fingertip, frames_per_ramp: float) -> None:
         if target.force_n != self.target.force_n or self.rate == 0.0:
@@ -484,10 +486,14 @@ class SimulatedSkinSource:
     def _render_touches(self, n: int) -> np.ndarray:
         """``n`` frames of the outside fingertips: samples take effect at their stream time,
         each fingertip slides linearly toward its position in the next sample and ramps its
-        force toward the newest force; lifted ones go once their force is gone."""
+        force toward the newest force.  As with a real hand, the skin senses a fingertip a
+        little before it lands (queued samples tell where and when) and after it lifts
+        (it stays for a few hover time constants, then goes)."""
         fs = self._fs
         ramp = _TOUCH_RAMP_S * fs
-        paths: dict[int, np.ndarray] = {}  # finger -> (n, 3): x, y, force per frame
+        hover = max(1e-9, self.physics.hover_tau_s * fs)  # frames
+        tail = int(np.ceil(_HOVER_TAIL_TAUS * hover))
+        paths: dict[int, np.ndarray] = {}  # finger -> (n, 4): x, y, force, presence
         with self._cond:
             for k in range(n):
                 t = (self._rendered + k) / fs
@@ -506,21 +512,35 @@ class SimulatedSkinSource:
                     step = float(np.clip(finger.target.force_n - finger.force, -finger.rate,
                                          finger.rate))  # fmt: skip
                     finger.x, finger.y, finger.force = x, y, max(0.0, finger.force + step)
-                    path = paths.setdefault(key, np.zeros((n, 3)))
-                    path[:k] = (x, y, 0.0)  # before it landed: hovering where it lands
-                    path[k] = (x, y, finger.force)
-                for key in [k2 for k2, f2 in self._fingers.items()
-                            if f2.target.force_n == 0.0 and f2.force <= 0.0]:  # fmt: skip
+                    if finger.force > 0.0:
+                        finger.lifted_frames = 0
+                    elif finger.target.force_n == 0.0:
+                        finger.lifted_frames += 1
+                    presence = np.exp(-finger.lifted_frames / hover)
+                    paths.setdefault(key, np.zeros((n, 4)))[k] = (x, y, finger.force, presence)
+                for key, landing_t, tip in self._landings():
+                    if key not in self._fingers:  # the hand approaches: sensed before contact
+                        presence = np.exp(-(landing_t - t) * fs / hover)
+                        paths.setdefault(key, np.zeros((n, 4)))[k] = (tip.x_mm, tip.y_mm, 0.0,
+                                                                     presence)  # fmt: skip
+                for key in [k2 for k2, f2 in self._fingers.items() if f2.lifted_frames > tail]:
                     del self._fingers[key]
-            for key, path in paths.items():  # fingers gone mid-chunk: no force after
-                last = np.flatnonzero(path[:, 2] > 0)
-                if key not in self._fingers and len(last):
-                    path[last[-1] + 1 :, 2] = 0.0
         tracks = []
         for path in paths.values():
             major, minor = _VIRTUAL_PAD.axes_mm(path[:, 2])
-            tracks.append(ContactTrack(path[:, 0], path[:, 1], path[:, 2], major, minor))
+            tracks.append(
+                ContactTrack(path[:, 0], path[:, 1], path[:, 2], major, minor, presence=path[:, 3])
+            )
         return self._model.render(tracks, n)
+
+    def _landings(self) -> list[tuple[int, float, Fingertip]]:
+        """Fingertips that queued samples will land, with when and where they first touch."""
+        seen: dict[int, tuple[int, float, Fingertip]] = {}
+        for sample in self._touch_timeline:
+            for key, tip in sample.touches.items():
+                if key not in seen and tip.force_n > 0:
+                    seen[key] = (key, sample.t, tip)
+        return list(seen.values())
 
     def _apply_sample(self, sample: _TouchSample, ramp: float) -> None:
         """Make ``sample`` the fingertips' targets (caller holds the lock)."""

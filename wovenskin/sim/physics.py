@@ -237,6 +237,10 @@ class ContactTrack:
     where the hand hovers); ``semi_major_mm``/``semi_minor_mm`` are the semi-axes of the
     contact ellipse and ``angle_rad`` the direction of its major axis, measured from +x
     toward +y.  Shape arguments may be scalars; they are broadcast to the track length.
+    ``presence`` (0..1 per frame, optional) is how near the finger is for the fringe field:
+    by default it is derived from the force (1 in contact, decaying with the hover time
+    constant before landing and after lift-off, within the track); a track rendered piece
+    by piece as it happens (the dashboard's fingertips) gives its own.
     """
 
     x_mm: np.ndarray
@@ -247,6 +251,7 @@ class ContactTrack:
     angle_rad: np.ndarray | float = 0.0
     kind: str = "fingertip"
     finger: str = ""
+    presence: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         force = np.asarray(self.force_n, dtype=np.float64)
@@ -270,6 +275,13 @@ class ContactTrack:
             raise ValueError("contact semi-axes must satisfy 0 < semi_minor <= semi_major")
         if self.kind not in CONTACT_KINDS:
             raise ValueError(f"unknown contact kind {self.kind!r}; known: {CONTACT_KINDS}")
+        if self.presence is not None:
+            presence = np.asarray(self.presence, dtype=np.float64)
+            if presence.shape != (n,) or not np.isfinite(presence).all():
+                raise ValueError(f"contact presence must be ({n},) finite values")
+            if (presence < 0).any() or (presence > 1).any():
+                raise ValueError("contact presence must lie in [0, 1]")
+            self.presence = presence
 
     @property
     def n_frames(self) -> int:
@@ -297,6 +309,7 @@ class ContactTrack:
             pad(self.angle_rad),
             self.kind,
             self.finger,
+            None if self.presence is None else pad(self.presence, zero=True),
         )
 
 
@@ -554,15 +567,18 @@ class SkinModel:
         phys = self.physics
         hover_frames = phys.hover_tau_s * self.sample_rate_hz
         for c in contacts:
-            touching = c.touching
-            if not touching.any():
-                continue
-            if touching.all():
-                distance = np.zeros(touching.shape)
+            if c.presence is not None:
+                presence = c.presence[offset : offset + n]
             else:
-                distance = np.asarray(distance_transform_edt(~touching), dtype=np.float64)
-            presence = np.exp(-distance / max(hover_frames, 1e-9))
-            presence = presence[offset : offset + n]
+                touching = c.touching
+                if not touching.any():
+                    continue
+                if touching.all():
+                    distance = np.zeros(touching.shape)
+                else:
+                    distance = np.asarray(distance_transform_edt(~touching), dtype=np.float64)
+                presence = np.exp(-distance / max(hover_frames, 1e-9))
+                presence = presence[offset : offset + n]
             idx = np.flatnonzero(presence > 1e-3)
             if idx.size == 0:
                 continue
