@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from wovenskin.robots.registry import make_robot
@@ -22,6 +23,20 @@ def test_ur_spec_builds_without_touching_the_network() -> None:
     robot = make_robot("ur:10.0.0.5")
     assert isinstance(robot, URRobot)
     assert robot.host == "10.0.0.5"
+
+
+def test_ur_spec_names_the_arms_model() -> None:
+    robot = make_robot("ur:10.0.0.5?model=UR10e")
+    assert isinstance(robot, URRobot) and robot.model is not None
+    assert robot.model.name == "ur10e"
+    assert np.rad2deg(robot.joint_limits().max_speed).tolist() == pytest.approx(
+        [120, 120, 180, 180, 180, 180]
+    )
+    assert make_robot("ur:10.0.0.5").model is None  # then the conservative limits
+    assert np.allclose(make_robot("ur:h").joint_limits().max_speed, np.deg2rad(120.0))
+    for spec, why in (("ur:h?model=ur99", "unknown UR model"), ("ur:h?speed=2", "unknown option")):
+        with pytest.raises(ValueError, match=why):
+            make_robot(spec)
 
 
 def test_sim_spec() -> None:

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mujoco_helpers import site_pose
 
 from wovenskin.robots.sim import tm5_900
 from wovenskin.robots.sim.robot import load_model
@@ -21,16 +22,6 @@ def joint_vectors(draw: st.DrawFn) -> np.ndarray:
 @pytest.fixture(scope="module")
 def model() -> mujoco.MjModel:
     return load_model()
-
-
-def site_pose(model: mujoco.MjModel, q: np.ndarray, name: str) -> np.ndarray:
-    data = mujoco.MjData(model)
-    data.qpos[:] = q
-    mujoco.mj_kinematics(model, data)
-    pose = np.eye(4)
-    pose[:3, :3] = data.site_xmat[model.site(name).id].reshape(3, 3)
-    pose[:3, 3] = data.site_xpos[model.site(name).id]
-    return pose
 
 
 def rotation_angle(a: np.ndarray, b: np.ndarray) -> float:

@@ -277,6 +277,23 @@ def test_a_techman_arm_is_drawn_with_the_tm5_900_model() -> None:
     assert scene is not None and len(scene.poses(INITIAL_Q)) == len(scene.shapes)
 
 
+@pytest.mark.parametrize("model", [None, "ur10e"])
+def test_a_ur_arm_is_drawn_from_its_own_dh_table(model) -> None:
+    from wovenskin.robots.ur import URRobot
+    from wovenskin.robots.ur.models import ur_model
+
+    scene = ArmScene.for_robot(URRobot("10.0.0.5", model=model))  # built, never connected
+    assert scene is not None
+    q = np.array([0.1, -1.2, 1.3, -1.6, -1.57, 0.3])  # as getActualQ reports them
+    poses = dict(zip([s.name for s in scene.shapes], scene.poses(q), strict=True))
+    flange = ur_model(model or "ur5e").flange_pose(q)
+    end_link = np.asarray(poses["end_link"][:3])
+    assert np.linalg.norm(end_link - (flange[:3, 3] - 0.05 * flange[:3, 2])) < 1e-4
+    top_left, top_right, _ = (np.asarray(c) for c in scene.skin_corners(SkinLayout()))
+    columns = (top_right - top_left) / np.linalg.norm(top_right - top_left)
+    assert columns @ flange[:3, 2] == pytest.approx(1.0, abs=1e-6)  # columns run to the tool
+
+
 def test_sockets_from_another_site_are_refused(runner) -> None:
     client = TestClient(create_app(runner))
     with (

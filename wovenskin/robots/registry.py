@@ -1,4 +1,5 @@
-"""make_robot: a robot backend from a spec: ``sim``, ``tm:HOST[:PORT]`` or ``ur:HOST``.
+"""make_robot: a robot backend from a spec: ``sim``, ``tm:HOST[:PORT]`` or
+``ur:HOST[?model=ur5e]`` (the UR model: ``ur3e``, ``ur5e``, ``ur10e``, ``ur16e``).
 
 Backends are imported only when their spec is used, so a missing optional package or an
 unfinished backend never breaks the others.
@@ -8,7 +9,7 @@ from __future__ import annotations
 
 from wovenskin.robots.base import Robot
 
-VALID_SPECS = "sim, tm:HOST[:PORT], ur:HOST"
+VALID_SPECS = "sim, tm:HOST[:PORT], ur:HOST[?model=ur5e]"
 
 
 def _bad(spec: str, why: str) -> ValueError:
@@ -45,8 +46,18 @@ def make_robot(spec: str) -> Robot:
     if kind == "ur" and sep:
         from wovenskin.robots.ur import URRobot
 
-        host, port = _host_and_port(spec, rest)
+        address, _, query = rest.partition("?")
+        host, port = _host_and_port(spec, address)
         if port is not None:
             raise _bad(spec, "gives a port, but ur_rtde uses the robot's fixed RTDE port")
-        return URRobot(host)
+        model = None
+        for item in filter(None, query.split("&")):
+            key, eq, value = item.partition("=")
+            if key != "model" or not eq:
+                raise _bad(spec, f"has an unknown option {item!r} (only model=...)")
+            model = value
+        try:
+            return URRobot(host, model=model)
+        except ValueError as exc:
+            raise _bad(spec, f"names {exc}") from None
     raise _bad(spec, "is not understood")

@@ -8,22 +8,10 @@ base frame sits at the bottom of the base, z up; the tool centre point (TCP) lie
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from wovenskin.robots.base import N_JOINTS, JointLimits
-
-
-@dataclass(frozen=True)
-class DHLink:
-    """One row of a standard DH table: Rz(theta + offset) Tz(d) Tx(a) Rx(alpha)."""
-
-    d: float  # m
-    a: float  # m
-    alpha: float  # rad
-    theta_offset: float  # rad
-
+from wovenskin.robots.dh import DHLink, chain_frames, dh_transform  # noqa: F401 (re-exported)
 
 DH: tuple[DHLink, ...] = (
     DHLink(d=0.1452, a=0.0, alpha=-np.pi / 2, theta_offset=0.0),
@@ -57,20 +45,6 @@ def _joint_vector(q: np.ndarray) -> np.ndarray:
     return joints
 
 
-def dh_transform(link: DHLink, theta: float) -> np.ndarray:
-    """The 4x4 transform of one DH row at joint angle ``theta`` (frame i-1 <- frame i)."""
-    ct, st = np.cos(theta + link.theta_offset), np.sin(theta + link.theta_offset)
-    ca, sa = np.cos(link.alpha), np.sin(link.alpha)
-    return np.array(
-        [
-            [ct, -st * ca, st * sa, link.a * ct],
-            [st, ct * ca, -ct * sa, link.a * st],
-            [0.0, sa, ca, link.d],
-            [0.0, 0.0, 0.0, 1.0],
-        ]
-    )
-
-
 def tool_transform() -> np.ndarray:
     """Flange <- TCP."""
     transform = np.eye(4)
@@ -80,11 +54,7 @@ def tool_transform() -> np.ndarray:
 
 def frame_transforms(q: np.ndarray) -> list[np.ndarray]:
     """Base <- DH frame i for i = 0..6 (frame 0 is the base, frame 6 the flange)."""
-    joints = _joint_vector(q)
-    frames = [np.eye(4)]
-    for link, theta in zip(DH, joints, strict=True):
-        frames.append(frames[-1] @ dh_transform(link, theta))
-    return frames
+    return chain_frames(DH, _joint_vector(q))
 
 
 def forward_kinematics(q: np.ndarray) -> np.ndarray:

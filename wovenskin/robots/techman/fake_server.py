@@ -258,7 +258,10 @@ class FakeListenNode:
 
     def _serve_listen(self, client: socket.socket) -> None:
         parser = PacketParser()
-        client.settimeout(0.05)
+        try:
+            client.settimeout(0.05)
+        except OSError:  # the client was closed (or the server stopped) before we began
+            return
         while not self._stop.is_set():
             try:
                 chunk = client.recv(4096)

@@ -30,9 +30,11 @@ from wovenskin.robots.base import (
     RobotState,
     finite_vector,
 )
+from wovenskin.robots.ur.models import ur_model
 
 # UR e-series: every joint turns +-360 deg; base and shoulder of the bigger arms are the
-# slowest joints (UR10e: 120 deg/s), so that is the default speed limit for all six.
+# slowest joints (UR10e: 120 deg/s), so that is the speed limit for all six when the arm's
+# model is not given (a named model brings its data sheet's limits, see .models).
 UR_JOINT_LIMITS = JointLimits(
     lower=np.full(6, -2 * np.pi),
     upper=np.full(6, 2 * np.pi),
@@ -86,10 +88,17 @@ class URRobot(Robot):
         stop_decel: float = 2.0,
         watchdog_hz: float = 10.0,
         command_time_s: float = 0.0,
-        limits: JointLimits = UR_JOINT_LIMITS,
+        limits: JointLimits | None = None,
+        model: str | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
+        """``model`` (``ur3e``, ``ur5e``, ``ur10e``, ``ur16e``) gives the arm's kinematics
+        for the 3D view and, unless ``limits`` is given, its data sheet's joint speeds;
+        without it the limits are the conservative :data:`UR_JOINT_LIMITS`."""
         self.host = host
+        self.model = ur_model(model) if model is not None else None
+        if limits is None:
+            limits = self.model.limits if self.model is not None else UR_JOINT_LIMITS
         self.linear_accel = linear_accel
         self.stop_decel = stop_decel
         self.watchdog_hz = watchdog_hz

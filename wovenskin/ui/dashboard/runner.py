@@ -176,6 +176,14 @@ class DashboardRunner:
             raise
         self.skin_spec, self.robot_spec = skin, robot
         self.scene = ArmScene.for_robot(session.robot)
+        if self.scene is None:
+            session.state.messages.append("no kinematic model of this arm: the view shows the TCP")
+        elif type(session.robot).__module__.startswith("wovenskin.robots.ur") and not getattr(
+            session.robot, "model", None
+        ):
+            session.state.messages.append(
+                "UR model not given (ur:HOST?model=ur10e, say): the view draws a UR5e"
+            )
         self._gesture, self._stops_seen = None, 0
         return session
 

@@ -4,7 +4,9 @@
 TM5-900, or a real Techman arm whose reported joints it mirrors), lists its visible geoms
 (type, size, colour) and, for joint angles ``q``, computes every geom's position and
 orientation with ``mj_kinematics``, plus the skin patch's corners, so the page draws the
-same arm the simulation moves.  Arms without a model (UR) get no scene: the page then shows
+same arm the simulation moves.  A Universal Robots arm is drawn from its own DH table
+(:mod:`wovenskin.robots.ur.models`: the model named in its spec, else a UR5e, said so in
+the page's messages).  An arm with no kinematic model gets no scene: the page then shows
 the TCP only.
 """
 
@@ -73,6 +75,12 @@ class ArmScene:
             return cls(
                 load_model(), tm5_900.SKIN_SITE, tm5_900.SKIN_UP_AXIS, tm5_900.SKIN_RIGHT_AXIS
             )
+        if module.startswith("wovenskin.robots.ur"):
+            from wovenskin.robots.ur import models
+
+            arm = getattr(robot, "model", None) or models.ur_model(models.DEFAULT_DISPLAY_MODEL)
+            return cls(arm.mujoco_model(), models.SKIN_SITE, models.SKIN_UP_AXIS,
+                       models.SKIN_RIGHT_AXIS)  # fmt: skip
         return None
 
     def describe(self) -> dict:

@@ -425,8 +425,25 @@ const arm = (() => {
     return g; // three's capsules and cylinders run along y, MuJoCo's along z
   }
 
+  // Frame the arm: on its first pose after a (re)build, and on a double click in the view.
+  let framed = false;
+  const VIEW_DIRECTION = new THREE.Vector3(1.05, -0.9, 0.75).normalize();
+  function frame() { // the box around the shapes' centres (three's Box3 is not in the bundle)
+    if (!meshes.length) return;
+    const low = meshes[0].position.clone(), high = meshes[0].position.clone();
+    for (const m of meshes) { low.min(m.position); high.max(m.position); }
+    const centre = low.clone().add(high).multiplyScalar(0.5);
+    const size = high.clone().sub(low).length() + 0.2; // + the shapes' own extent, roughly
+    controls.target.copy(centre);
+    camera.position.copy(centre).addScaledVector(VIEW_DIRECTION, Math.max(0.8, 1.7 * size));
+    controls.update();
+    framed = true; dirty = true;
+  }
+  renderer.domElement.addEventListener("dblclick", frame);
+
   function build(description) {
     dirty = true;
+    framed = false;
     for (const m of meshes) scene.remove(m);
     meshes.length = 0;
     if (patch) { scene.remove(patch); patch = null; }
@@ -456,6 +473,7 @@ const arm = (() => {
         meshes[k].position.set(p[0], p[1], p[2]);
         meshes[k].quaternion.set(p[4], p[5], p[6], p[3]);
       });
+      if (!framed) frame();
     }
     if (patch && robot.skin_corners) { // top-left, top-right, bottom-left: a 1 mm lift off the link
       const [tl, tr, bl] = robot.skin_corners.map((c) => new THREE.Vector3(...c));
