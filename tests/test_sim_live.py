@@ -245,6 +245,22 @@ def test_a_touch_time_must_be_finite():
         source.set_touches({1: Fingertip(1.0, 1.0, 1.0)}, client_t=float("nan"))
 
 
+def test_a_sender_clock_that_jumps_ahead_cannot_hold_back_the_touch():
+    from wovenskin.sim.live import Fingertip
+
+    source = SimulatedSkinSource(seed=3, autonomous=False, lookahead_s=0.03)
+    source.start()
+    try:
+        rest = _frames_for(source, 0.3).mean(axis=0)
+        source.set_touches({1: Fingertip(50.0, 20.0, 1.5)}, client_t=10.0)
+        source.set_touches({1: Fingertip(50.0, 120.0, 1.5)}, client_t=1e6)  # 11 days later
+        frames = _frames_for(source, 0.5) - rest
+        rows = [np.unravel_index(np.argmax(f), f.shape)[0] for f in frames[-20:]]
+        assert min(rows) >= 7  # the finger is where the second sample put it, now
+    finally:
+        source.close()
+
+
 def test_a_lifted_outside_fingertip_is_sensed_for_a_moment_then_goes():
     from wovenskin.sim.live import Fingertip
 

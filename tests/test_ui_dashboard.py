@@ -294,6 +294,36 @@ def test_a_ur_arm_is_drawn_from_its_own_dh_table(model) -> None:
     assert columns @ flange[:3, 2] == pytest.approx(1.0, abs=1e-6)  # columns run to the tool
 
 
+def test_the_page_draws_a_ur_arm_at_the_joints_it_reports(tmp_path) -> None:
+    from test_robots_ur import FakeControl, FakeReceive
+
+    from wovenskin.robots.ur import URRobot
+
+    receive = FakeReceive()
+
+    def opener(skin: str, robot: str):
+        arm = URRobot(
+            "10.0.0.5", control_factory=lambda h: FakeControl(), receive_factory=lambda h: receive
+        )
+        return open_session(
+            skin, arm, recognizer=ContactMeans("swipe_up"), poses=tmp_path / "poses.toml"
+        )
+
+    runner = DashboardRunner(opener, "sim:auto=0", "ur:10.0.0.5")
+    runner.start()
+    try:
+        assert _wait(lambda: runner.latest() is not None)
+        scene = runner.describe()["scene"]
+        state = runner.latest()
+        assert len(state["robot"]["geoms"]) == len(scene["geoms"]) > 10
+        assert any("draws a UR5e" in line for line in state["messages"])
+        receive.q = [0.5, -1.0, 1.0, -1.5, -1.57, 0.0]  # the arm moved: so does its drawing
+        before = state["robot"]["geoms"]
+        assert _wait(lambda: runner.latest()["robot"]["geoms"] != before)
+    finally:
+        runner.close()
+
+
 def test_sockets_from_another_site_are_refused(runner) -> None:
     client = TestClient(create_app(runner))
     with (

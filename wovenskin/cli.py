@@ -834,7 +834,10 @@ def bench_model(
 
 # ----------------------------------------------------------------------- robot control
 
-ROBOT_HELP = "Robot: sim (the simulated TM5-900), tm:HOST[:PORT] (Techman) or ur:HOST (UR)."
+ROBOT_HELP = (
+    "Robot: sim (the simulated TM5-900), tm:HOST[:PORT] (Techman) or "
+    "ur:HOST[?model=ur5e] (UR: ur3e, ur5e, ur10e, ur16e)."
+)
 pose_app = typer.Typer(help="Named robot poses: the task's initial pose and home.")
 app.add_typer(pose_app, name="pose")
 
@@ -885,8 +888,11 @@ def run(
 ) -> None:
     """Drive a robot with gestures: skin, recogniser, mapping, safety and robot in one loop.
 
-    With no options: the live dashboard at http://127.0.0.1:8000 on the simulated skin and
-    arm.  --skin serial:PORT and --robot tm:HOST drive real hardware through the same loop.
+    With no options: the live dashboard at http://127.0.0.1:8000 on the simulated skin
+    and arm.
+
+    --skin serial:PORT and --robot tm:HOST (or ur:HOST) drive real hardware through the
+    same loop.
     """
     from wovenskin.control.session import open_session
     from wovenskin.control.trace import TraceWriter

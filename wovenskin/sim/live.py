@@ -63,6 +63,7 @@ MAX_TOUCH_FORCE_N = 10.0
 MAX_TOUCHES = 10
 _HOVER_TAIL_TAUS = 4.0  # a lifted outside fingertip is sensed for this many hover constants
 TOUCH_JITTER_S = 0.03  # timestamped outside touches play this far behind their first sample
+MAX_TOUCH_LEAD_S = 2.0  # a sample timed further ahead than this re-anchors the sender's clock
 _VIRTUAL_PAD = Pad(width_mm=9.0, growth_mm=3.0, aspect=1.15)
 
 
@@ -337,7 +338,8 @@ class SimulatedSkinSource:
         keeps the sender's timing: samples are played :data:`TOUCH_JITTER_S` behind the
         first sample of a touch, at their own spacing, however bunched they arrive, and a
         fingertip slides in a straight line from one sample to the next.  A sample later
-        than that delays the rest of the touch rather than making the finger jump.  Without
+        than that delays the rest of the touch rather than making the finger jump; one timed more
+than :data:`MAX_TOUCH_LEAD_S` ahead (the sender's clock jumped) plays from now.  Without
         ``client_t`` a sample applies at the next rendered frame.  Positions may lie off
         the sensing area (nothing is sensed there); forces are capped at
         :data:`MAX_TOUCH_FORCE_N`.  Raises ``ValueError`` for more than :data:`MAX_TOUCHES`
@@ -366,6 +368,9 @@ class SimulatedSkinSource:
                 if t < head:  # later than the buffer allows: delay the rest of the touch
                     self._touch_offset += head - t
                     t = head
+                elif t > max(head, last) + MAX_TOUCH_LEAD_S:  # the sender's clock jumped ahead:
+                    self._touch_offset -= t - (head + TOUCH_JITTER_S)  # play from now, not then
+                    t = head + TOUCH_JITTER_S
                 t = max(t, last)
             self._touch_timeline.append(_TouchSample(t, capped))
             self._cond.notify_all()
