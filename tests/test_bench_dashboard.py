@@ -21,6 +21,18 @@ def test_the_benchmark_measures_the_page_rate_and_the_swipes() -> None:
     json.dumps(result.to_dict())
 
 
+def test_gestures_drawn_as_on_a_touch_screen_are_scored_by_their_first_command() -> None:
+    result = run_dashboard_benchmark(
+        idle_seconds=0.5, swipes=1, gesture_rounds=1, gestures=("pinch_out_5f", "push")
+    )
+    assert result.drawn_total == 2 and set(result.drawn) == {"pinch_out_5f", "push"}
+    for name, firsts in result.drawn.items():
+        assert len(firsts) == 1
+        assert len(result.drawn_latency_ms.get(name, [])) == (firsts[0] == name)
+    assert result.to_dict()["drawn_right"] == result.drawn_right
+    assert "touch screen" in str(result.table().columns[0]._cells)
+
+
 def test_the_command_refuses_bad_options() -> None:
     outcome = CliRunner().invoke(app, ["bench", "dashboard", "--swipes", "0"])
     assert outcome.exit_code == 2 and "--swipes must be" in outcome.stderr

@@ -1092,17 +1092,22 @@ def bench_dashboard(
     idle_seconds: float = typer.Option(5.0, help="Seconds of page states counted while idle."),
     swipes: int = typer.Option(6, help="Swipes sent over the socket (alternately up and down)."),
     ui_rate: float = typer.Option(40.0, help="Page updates per second asked of the server."),
+    rounds: int = typer.Option(
+        2, help="Rounds of the 14 gestures drawn as on a touch screen (0: none)."
+    ),
+    seed: int = typer.Option(0, help="Seed of the simulated people who draw the gestures."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
-    """Dashboard page rate and touch -> command -> motion latency, over its WebSocket."""
+    """Dashboard page rate, touch -> command -> motion latency and the 14 gestures drawn as
+    on a touch screen, all over its WebSocket."""
     import json
 
     from wovenskin.bench.dashboard import run_dashboard_benchmark
 
-    if swipes < 1 or idle_seconds <= 0:
-        raise ValueError("--swipes must be >= 1 and --idle-seconds positive")
+    if swipes < 1 or idle_seconds <= 0 or rounds < 0:
+        raise ValueError("--swipes must be >= 1, --idle-seconds positive, --rounds >= 0")
     with err_console.status("benchmarking the dashboard..."):
-        result = run_dashboard_benchmark(model, idle_seconds, swipes, ui_rate)
+        result = run_dashboard_benchmark(model, idle_seconds, swipes, ui_rate, rounds, seed)
     if json_out:
         print(json.dumps(result.to_dict()))
     else:

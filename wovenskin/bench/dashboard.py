@@ -14,6 +14,11 @@ WebSocket, from a client in this process:
   the first state in which the TCP moves (faster than 1 mm/s), as the client sees them:
   socket, touch jitter buffer, physics, conditioning, recogniser, dwell, safety, arm and
   the page's update period included.
+- The vocabulary as a touch screen draws it: ``gesture_rounds`` rounds of the 14
+  gestures, each performed by a new simulated person (:func:`~wovenskin.sim.performances.
+  perform`) and sent as a touch screen would send it: one pointer per fingertip, a
+  timestamped sample every 10 ms while the fingertip presses.  For each, the first
+  command the page shows and the time from the first touch message to it.
 """
 
 from __future__ import annotations
@@ -28,7 +33,10 @@ import numpy as np
 from rich.table import Table
 
 from wovenskin.control.session import open_session
+from wovenskin.gestures import GESTURE_NAMES
 from wovenskin.sim.motion import minimum_jerk
+from wovenskin.sim.performances import perform
+from wovenskin.sim.person import Person
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.server import BackgroundServer
 
@@ -57,9 +65,20 @@ class DashboardBenchResult:
     motion_median_ms: float = 0.0
     motion_p90_ms: float = 0.0
     commands: list[str | None] = field(default_factory=list)
+    gesture_rounds: int = 0
+    drawn: dict[str, list[str | None]] = field(default_factory=dict)  # gesture -> first commands
+    drawn_latency_ms: dict[str, list[float]] = field(default_factory=dict)  # right ones only
+
+    @property
+    def drawn_right(self) -> int:
+        return sum(first == name for name, firsts in self.drawn.items() for first in firsts)
+
+    @property
+    def drawn_total(self) -> int:
+        return sum(len(firsts) for firsts in self.drawn.values())
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        return {**asdict(self), "drawn_right": self.drawn_right, "drawn_total": self.drawn_total}
 
     def table(self) -> Table:
         table = Table(title="wovenskin bench dashboard: sim skin + sim TM5-900, over the socket")
@@ -84,6 +103,22 @@ class DashboardBenchResult:
             "first touch -> TCP moving (client sees it)",
             f"median {self.motion_median_ms:.0f} ms, p90 {self.motion_p90_ms:.0f} ms",
         )
+        if self.drawn:
+            latencies = [v for values in self.drawn_latency_ms.values() for v in values]
+            table.add_row(
+                f"gestures drawn as on a touch screen ({self.gesture_rounds} rounds)",
+                f"{self.drawn_right} / {self.drawn_total} right first command",
+            )
+            if latencies:
+                table.add_row(
+                    "  first touch -> right command",
+                    f"median {np.median(latencies):.0f} ms, p90 "
+                    f"{np.percentile(latencies, 90):.0f} ms",
+                )
+            for name, firsts in self.drawn.items():
+                wrong = [str(first) for first in firsts if first != name]
+                if wrong:
+                    table.add_row(f"  {name} taken for", ", ".join(wrong))
         return table
 
 
@@ -131,11 +166,44 @@ def _swipe(client: _Client, direction: int) -> float:
     return t0
 
 
+def _draw(client: _Client, name: str, rng: np.random.Generator) -> float:
+    """Perform ``name`` as a new simulated person, sent as touch-screen pointers (a sample
+    every :data:`POINTER_PERIOD_S` while a fingertip presses); returns the first send time."""
+    performance = perform(name, Person.sample(rng), rng)
+    tips = performance.fingertips()
+    fs = performance.sample_rate_hz
+    step = max(1, int(round(POINTER_PERIOD_S * fs)))
+    pressing = performance.touching()
+    first = int(np.argmax(pressing))  # from the first contact: a screen sees no hovering
+    t0 = time.perf_counter()
+    for k in range(first, performance.n_frames, step):
+        touches = [
+            {"id": i + 1, "x_mm": float(c.x_mm[k]), "y_mm": float(c.y_mm[k]),
+             "force_n": float(c.force_n[k])}
+            for i, c in enumerate(tips)
+            if k < c.n_frames and c.force_n[k] > 0
+        ]  # fmt: skip
+        client.send({"type": "touch", "t": time.perf_counter(), "touches": touches})
+        time.sleep(max(0.0, t0 + (k - first + step) / fs - time.perf_counter()))
+    client.send({"type": "touch", "t": time.perf_counter(), "touches": []})
+    return t0
+
+
+def _first_command(client: _Client, since: float) -> tuple[str | None, float | None]:
+    for t, state, _ in client.since(since):
+        if state["recognition"]["command"]:
+            return state["recognition"]["command"], (t - since) * 1000.0
+    return None, None
+
+
 def run_dashboard_benchmark(
     model: str | Path | None = None,
     idle_seconds: float = 5.0,
     swipes: int = 6,
     ui_rate_hz: float = 40.0,
+    gesture_rounds: int = 0,
+    seed: int = 0,
+    gestures: tuple[str, ...] = GESTURE_NAMES,
 ) -> DashboardBenchResult:
     def opener(skin: str, robot: str):
         return open_session(skin, robot, model)
@@ -180,6 +248,16 @@ def run_dashboard_benchmark(
                     command_ms.append((named[0] - start) * 1000.0)
                     if moving:
                         motion_ms.append((moving[0] - start) * 1000.0)
+            rng = np.random.default_rng(seed)
+            result.gesture_rounds = gesture_rounds
+            for _ in range(gesture_rounds):
+                for name in gestures:
+                    start = _draw(client, name, rng)
+                    time.sleep(1.0)  # the command ends, the arm settles
+                    first, latency = _first_command(client, start)
+                    result.drawn.setdefault(name, []).append(first)
+                    if first == name and latency is not None:
+                        result.drawn_latency_ms.setdefault(name, []).append(latency)
             result.swipes = swipes
             result.recognised, result.moved = len(command_ms), len(motion_ms)
             if command_ms:

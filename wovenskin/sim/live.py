@@ -340,9 +340,9 @@ class SimulatedSkinSource:
         fingertip slides in a straight line from one sample to the next.  A sample later
         than that delays the rest of the touch rather than making the finger jump; one
         timed more than :data:`MAX_TOUCH_LEAD_S` ahead (the sender's clock jumped) plays
-        from now.  Without ``client_t`` a sample applies at the next rendered frame.  Positions may lie off
-        the sensing area (nothing is sensed there); forces are capped at
-        :data:`MAX_TOUCH_FORCE_N`.  Raises ``ValueError`` for more than :data:`MAX_TOUCHES`
+        from now.  Without ``client_t`` a sample applies at the next rendered frame.
+        Positions may lie off the sensing area (nothing is sensed there); forces are capped
+        at :data:`MAX_TOUCH_FORCE_N`.  Raises ``ValueError`` for more than :data:`MAX_TOUCHES`
         fingertips, values that are not fingertips or a non-finite ``client_t``."""
         if len(touches) > MAX_TOUCHES:
             raise ValueError(f"at most {MAX_TOUCHES} fingertips, got {len(touches)}")
