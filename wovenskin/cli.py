@@ -346,6 +346,16 @@ def eval_stream(
         console.print(per_class_table(total))
 
 
+def _show_bench(result, json_out: bool) -> None:
+    """A benchmark's figures: one JSON object, or its Rich table."""
+    if json_out:
+        import json
+
+        print(json.dumps(result.to_dict()))
+    else:
+        console.print(result.table())
+
+
 @bench_app.command("io")
 @user_errors
 def bench_io(
@@ -353,15 +363,11 @@ def bench_io(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Decode and conditioning throughput for a 10 x 10 skin on one core."""
-    import json
 
     from wovenskin.bench.io import run_io_benchmark
 
     result = run_io_benchmark(n_frames=frames)
-    if json_out:
-        print(json.dumps(result.to_dict()))
-    else:
-        console.print(result.table())
+    _show_bench(result, json_out)
 
 
 @bench_app.command("serial")
@@ -372,15 +378,11 @@ def bench_serial(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Serial reader over a real pseudo-terminal: frames, errors, stall-report delay."""
-    import json
 
     from wovenskin.bench.serial import run_serial_benchmark
 
     result = run_serial_benchmark(stalls, stall_ms)
-    if json_out:
-        print(json.dumps(result.to_dict()))
-    else:
-        console.print(result.table())
+    _show_bench(result, json_out)
 
 
 @bench_app.command("sim")
@@ -390,15 +392,11 @@ def bench_sim(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """How many times faster than real time the simulated skin renders, on one core."""
-    import json
 
     from wovenskin.bench.sim import run_sim_benchmark
 
     result = run_sim_benchmark(seconds)
-    if json_out:
-        print(json.dumps(result.to_dict()))
-    else:
-        console.print(result.table())
+    _show_bench(result, json_out)
 
 
 @bench_app.command("detection")
@@ -816,7 +814,6 @@ def bench_model(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Per-window latency (batch 1, one thread) and throughput on ONNX Runtime and torch."""
-    import json
 
     _require_torch("wovenskin bench model")
     from wovenskin.bench.model import run_model_benchmark
@@ -826,10 +823,7 @@ def bench_model(
             repeats, batch_size, include_shipped=shipped, throughput_seconds=seconds,
             progress=lambda message: status.update(f"bench model: {message}"),
         )  # fmt: skip
-    if json_out:
-        print(json.dumps(result.to_dict()))
-    else:
-        console.print(result.table())
+    _show_bench(result, json_out)
 
 
 # ----------------------------------------------------------------------- robot control
@@ -1073,16 +1067,12 @@ def bench_control(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """IK step time, control-loop rate and jitter, first contact to first motion (sim)."""
-    import json
 
     from wovenskin.bench.control import run_control_benchmark
 
     with err_console.status("benchmarking the control loop..."):
         result = run_control_benchmark(model, loop_seconds, streams, stream_seconds, ik_steps)
-    if json_out:
-        print(json.dumps(result.to_dict()))
-    else:
-        console.print(result.table())
+    _show_bench(result, json_out)
 
 
 @bench_app.command("dashboard")
@@ -1100,7 +1090,6 @@ def bench_dashboard(
 ) -> None:
     """Dashboard page rate, touch -> command -> motion latency and the 14 gestures drawn as
     on a touch screen, all over its WebSocket."""
-    import json
 
     from wovenskin.bench.dashboard import run_dashboard_benchmark
 
@@ -1108,10 +1097,7 @@ def bench_dashboard(
         raise ValueError("--swipes must be >= 1, --idle-seconds positive, --rounds >= 0")
     with err_console.status("benchmarking the dashboard..."):
         result = run_dashboard_benchmark(model, idle_seconds, swipes, ui_rate, rounds, seed)
-    if json_out:
-        print(json.dumps(result.to_dict()))
-    else:
-        console.print(result.table())
+    _show_bench(result, json_out)
 
 
 def main() -> None:
