@@ -233,6 +233,18 @@ def test_the_socket_sends_the_scene_then_states_and_takes_commands(runner) -> No
         assert _wait(lambda: runner.latest()["safety"]["user_stopped"])
 
 
+def test_a_page_that_goes_away_with_a_finger_down_lifts_it(runner) -> None:
+    client = TestClient(create_app(runner))
+    with client.websocket_connect("/ws") as ws:
+        assert ws.receive_json()["type"] == "scene"
+        touch = {"id": 1, "x_mm": 50, "y_mm": 70, "force_n": 1.5}
+        ws.send_text(json.dumps({"type": "touch", "touches": [touch]}))
+        assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+    # the socket closed with the finger down: the finger lifts, the command ends
+    assert _wait(lambda: runner.latest()["recognition"]["command"] is None)
+    assert _wait(lambda: runner.latest()["robot"]["tcp_speed"] < 1e-3)
+
+
 def test_a_token_guards_every_request_and_the_socket(runner) -> None:
     client = TestClient(create_app(runner, token="s3cret"))
     assert client.get("/").status_code == 401

@@ -227,6 +227,16 @@ def test_the_stop_button_stops_the_moving_arm_until_resumed(page) -> None:
     assert page.problems == []
 
 
+def test_leaving_the_page_with_the_button_down_lifts_the_finger(page) -> None:
+    _swipe_up(page)
+    assert _wait_for(page, "window.wovenskin.state.recognition.command === 'swipe_up'", 5.0)
+    page.evaluate("window.dispatchEvent(new Event('blur'))")  # another window takes focus
+    assert _wait_for(page, "!window.wovenskin.state.recognition.command", 5.0)
+    assert _wait_for(page, "window.wovenskin.state.robot.tcp_speed < 0.001", 5.0)
+    page.mouse.up()
+    assert page.problems == []
+
+
 def test_a_perform_button_makes_the_simulated_person_act(page) -> None:
     page.click("#perform button[data-gesture='swipe_left']")
     assert _wait_for(page, "window.wovenskin.state.recognition.command === 'swipe_left'", 6.0)

@@ -13,7 +13,9 @@ back and changes nothing.
 
 Bound to a loopback address the server is open to this machine's users; bound elsewhere it
 requires a token (``?token=`` on the page's address, then a cookie), compared in constant
-time, on every request and socket.  Sockets opened by another site's page (a foreign
+time, on every request and socket.  A page whose socket closes while its fingertips are on
+the virtual skin has them lifted (as a lift-off: the command ends), so a dropped network
+or a closed tab never leaves the arm moving.  Sockets opened by another site's page (a foreign
 ``Origin``) are refused either way.  :func:`serve` runs uvicorn until Ctrl-C.
 """
 
@@ -152,10 +154,11 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
         await ws.accept()
         replies: asyncio.Queue[str] = asyncio.Queue(maxsize=64)
         sender = asyncio.create_task(_send_states(ws, runner, replies))
+        touching = [False]  # this page's fingertips are on the virtual skin
         try:
             while True:
                 text = await ws.receive_text()
-                reply = _handle(runner, text)
+                reply = _handle(runner, text, touching)
                 if reply is not None and not replies.full():
                     replies.put_nowait(json.dumps(reply))
         except WebSocketDisconnect:
@@ -164,6 +167,9 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
             sender.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await sender
+            if touching[0]:  # a page that went away cannot lift its fingers: lift them
+                with contextlib.suppress(Exception):
+                    runner.touch({})
 
     return app
 
@@ -188,8 +194,9 @@ async def _send_states(ws: WebSocket, runner: DashboardRunner, replies: asyncio.
         await asyncio.sleep(poll)
 
 
-def _handle(runner: DashboardRunner, text: str) -> dict | None:
-    """Carry out one browser message; returns an error reply or None."""
+def _handle(runner: DashboardRunner, text: str, touching: list[bool] | None = None) -> dict | None:
+    """Carry out one browser message; returns an error reply or None.  ``touching[0]``
+    is kept telling whether this page's last touch sample had fingertips down."""
     if len(text) > MAX_MESSAGE_BYTES:
         return {"type": "error", "message": "message too long"}
     try:
@@ -200,6 +207,8 @@ def _handle(runner: DashboardRunner, text: str) -> dict | None:
         if kind == "touch":  # {"touches": [...], "t": s} or {"samples": [{"t", "touches"}]}
             for client_t, touches in parse_touch_message(message):
                 runner.touch(touches, client_t)
+                if touching is not None:
+                    touching[0] = bool(touches)
         elif kind == "command":
             runner.submit({k: v for k, v in message.items() if k != "type"})
         elif kind == "ping":

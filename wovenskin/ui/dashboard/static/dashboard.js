@@ -242,6 +242,13 @@ for (const kind of ["pointerup", "pointercancel", "lostpointercapture"]) {
     if (pointers.delete(event.pointerId)) sendTouches([sample(event)]);
   });
 }
+function liftAll() { // the page loses the pointer (another window, hidden tab): lift every finger
+  if (pointers.size === 0) return;
+  pointers.clear();
+  sendTouches([{ t: performance.now() / 1000, touches: [] }]);
+}
+window.addEventListener("blur", liftAll);
+document.addEventListener("visibilitychange", () => { if (document.hidden) liftAll(); });
 skinCanvas.addEventListener("wheel", (event) => { // pinch a mouse hand
   const fingers = Number($("fingers").value);
   if (fingers === 1 || pointers.size === 0) return;
