@@ -245,6 +245,24 @@ def test_a_page_that_goes_away_with_a_finger_down_lifts_it(runner) -> None:
     assert _wait(lambda: runner.latest()["robot"]["tcp_speed"] < 1e-3)
 
 
+def test_a_page_that_stops_talking_with_a_finger_down_has_it_lifted(runner) -> None:
+    client = TestClient(create_app(runner))
+    with client.websocket_connect("/ws") as ws:
+        assert ws.receive_json()["type"] == "scene"
+        touch = {"id": 1, "x_mm": 50, "y_mm": 70, "force_n": 1.5}
+        ws.send_text(json.dumps({"type": "touch", "touches": [touch]}))
+        assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+        started = time.monotonic()
+        for _ in range(6):  # heartbeats every 0.25 s keep the finger down
+            time.sleep(0.25)
+            ws.send_text(json.dumps({"type": "touch", "touches": [touch]}))
+        assert runner.latest()["recognition"]["command"] == "swipe_up"
+        assert time.monotonic() - started > 1.2  # longer than the silence allowed
+        # then silence, the socket still open: the finger lifts, the command ends
+        assert _wait(lambda: runner.latest()["recognition"]["command"] is None, 4.0)
+        assert _wait(lambda: any("stopped sending" in m for m in runner.latest()["messages"]))
+
+
 def test_a_token_guards_every_request_and_the_socket(runner) -> None:
     client = TestClient(create_app(runner, token="s3cret"))
     assert client.get("/").status_code == 401

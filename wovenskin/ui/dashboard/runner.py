@@ -45,6 +45,7 @@ COMMANDS = (
     "perform",
     "autoplay",
     "switch",
+    "note",
 )
 DEFAULT_SIM_LOOKAHEAD = "0.03"  # s of frames the simulated skin renders ahead (touch latency)
 
@@ -306,6 +307,8 @@ class DashboardRunner:
             if source is None:
                 raise ValueError("only the simulated skin has a simulated person")
             source.autonomous = bool(command.get("on", True))
+        elif name == "note":  # a line for the page's messages (from the server)
+            session.state.messages.append(str(command.get("text", ""))[:200])
         elif name == "switch":
             self._switch(
                 str(command.get("skin") or self.skin_spec),

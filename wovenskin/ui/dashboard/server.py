@@ -15,7 +15,9 @@ Bound to a loopback address the server is open to this machine's users; bound el
 requires a token (``?token=`` on the page's address, then a cookie), compared in constant
 time, on every request and socket.  A page whose socket closes while its fingertips are on
 the virtual skin has them lifted (as a lift-off: the command ends), so a dropped network
-or a closed tab never leaves the arm moving.  Sockets opened by another site's page (a foreign
+or a closed tab never leaves the arm moving; so has a page that sends nothing for
+:data:`TOUCH_SILENCE_S` while its fingers are down (the page repeats its touches every
+0.25 s while they rest: a hold-to-run heartbeat).  Sockets opened by another site's page (a foreign
 ``Origin``) are refused either way.  :func:`serve` runs uvicorn until Ctrl-C.
 """
 
@@ -42,6 +44,8 @@ from wovenskin.ui.dashboard.runner import DashboardRunner
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 COOKIE = "wovenskin_token"
 MAX_MESSAGE_BYTES = 16_384
+TOUCH_SILENCE_S = 1.0  # a page with fingers down sends at least every 0.25 s (its heartbeat)
+TOUCH_SILENCE_MESSAGE = "virtual fingers lifted: the page stopped sending while touching"
 
 
 def static_dir() -> Path:
@@ -157,7 +161,16 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
         touching = [False]  # this page's fingertips are on the virtual skin
         try:
             while True:
-                text = await ws.receive_text()
+                if touching[0]:  # hold-to-run: a page with fingers down keeps talking
+                    try:
+                        text = await asyncio.wait_for(ws.receive_text(), TOUCH_SILENCE_S)
+                    except TimeoutError:
+                        runner.touch({})
+                        touching[0] = False
+                        runner.submit({"cmd": "note", "text": TOUCH_SILENCE_MESSAGE})
+                        continue
+                else:
+                    text = await ws.receive_text()
                 reply = _handle(runner, text, touching)
                 if reply is not None and not replies.full():
                     replies.put_nowait(json.dumps(reply))

@@ -247,6 +247,11 @@ function liftAll() { // the page loses the pointer (another window, hidden tab):
   pointers.clear();
   sendTouches([{ t: performance.now() / 1000, touches: [] }]);
 }
+// Hold-to-run heartbeat: while fingers rest without moving the page repeats them, so the
+// server can tell a resting finger from a page that stopped talking (it lifts after 1 s).
+setInterval(() => {
+  if (pointers.size) sendTouches([{ t: performance.now() / 1000, touches: touchList() }]);
+}, 250);
 window.addEventListener("blur", liftAll);
 document.addEventListener("visibilitychange", () => { if (document.hidden) liftAll(); });
 skinCanvas.addEventListener("wheel", (event) => { // pinch a mouse hand
