@@ -263,6 +263,27 @@ def test_a_page_that_stops_talking_with_a_finger_down_has_it_lifted(runner) -> N
         assert _wait(lambda: any("stopped sending" in m for m in runner.latest()["messages"]))
 
 
+def test_one_page_draws_at_a_time(runner) -> None:
+    client = TestClient(create_app(runner))
+    touch = {"id": 1, "x_mm": 50, "y_mm": 70, "force_n": 1.5}
+    with client.websocket_connect("/ws") as first, client.websocket_connect("/ws") as second:
+        assert first.receive_json()["type"] == "scene"
+        assert second.receive_json()["type"] == "scene"
+        first.send_text(json.dumps({"type": "touch", "touches": [touch]}))
+        assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+        second.send_text(json.dumps({"type": "touch", "touches": []}))  # would lift the first's
+        while (reply := second.receive_json())["type"] != "error":
+            pass
+        assert "another page" in reply["message"]
+        time.sleep(0.2)
+        assert runner.latest()["recognition"]["command"] == "swipe_up"  # still held
+        first.send_text(json.dumps({"type": "touch", "touches": []}))
+        assert _wait(lambda: runner.latest()["recognition"]["command"] is None)
+        second.send_text(json.dumps({"type": "touch", "touches": [touch]}))  # now it may
+        assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+        second.send_text(json.dumps({"type": "touch", "touches": []}))
+
+
 def test_a_token_guards_every_request_and_the_socket(runner) -> None:
     client = TestClient(create_app(runner, token="s3cret"))
     assert client.get("/").status_code == 401

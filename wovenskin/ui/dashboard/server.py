@@ -13,12 +13,15 @@ back and changes nothing.
 
 Bound to a loopback address the server is open to this machine's users; bound elsewhere it
 requires a token (``?token=`` on the page's address, then a cookie), compared in constant
-time, on every request and socket.  A page whose socket closes while its fingertips are on
-the virtual skin has them lifted (as a lift-off: the command ends), so a dropped network
-or a closed tab never leaves the arm moving; so has a page that sends nothing for
-:data:`TOUCH_SILENCE_S` while its fingers are down (the page repeats its touches every
-0.25 s while they rest: a hold-to-run heartbeat).  Sockets opened by another site's page (a foreign
-``Origin``) are refused either way.  :func:`serve` runs uvicorn until Ctrl-C.
+time, on every request and socket.  Sockets opened by another site's page (a foreign
+``Origin``) are refused either way.
+
+Virtual fingers never outlive the page that put them down: a page whose socket closes
+while its fingertips are on the virtual skin has them lifted (a lift-off: the command
+ends), and so has a page that sends nothing for :data:`TOUCH_SILENCE_S` while they are
+down (the page repeats resting fingers every 0.25 s: a hold-to-run heartbeat).  One page
+draws at a time (:class:`PageTouch`): the others' touches are refused until its fingers
+lift.  :func:`serve` runs uvicorn until Ctrl-C.
 """
 
 from __future__ import annotations
@@ -119,10 +122,31 @@ def parse_touch_message(message: dict) -> list[tuple[float | None, dict[int, Fin
     return out
 
 
+class PageTouch:
+    """One page's fingertips on the virtual skin.  One page draws at a time: while a page
+    has fingers down (it *holds* the skin), touch messages of the others are refused, so
+    two tablets never overwrite each other's fingers."""
+
+    def __init__(self, shared: dict) -> None:
+        self._shared = shared  # {"holder": PageTouch | None}, one per app
+        self.down = False
+
+    def may_touch(self) -> bool:
+        return self._shared.get("holder") in (None, self)
+
+    def set_down(self, down: bool) -> None:
+        self.down = down
+        if down:
+            self._shared["holder"] = self
+        elif self._shared.get("holder") is self:
+            self._shared["holder"] = None
+
+
 def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
     """The app serving ``runner``; ``token`` (None: no check) guards every request."""
     app = FastAPI(title="wovenskin dashboard", docs_url=None, redoc_url=None, openapi_url=None)
     page = (static_dir() / "index.html").read_text(encoding="utf-8")
+    virtual_skin: dict = {"holder": None}  # the page whose fingers are down (PageTouch)
 
     @app.middleware("http")
     async def check_token(request: Request, call_next):
@@ -158,20 +182,20 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
         await ws.accept()
         replies: asyncio.Queue[str] = asyncio.Queue(maxsize=64)
         sender = asyncio.create_task(_send_states(ws, runner, replies))
-        touching = [False]  # this page's fingertips are on the virtual skin
+        touch = PageTouch(virtual_skin)  # this page's fingertips on the virtual skin
         try:
             while True:
-                if touching[0]:  # hold-to-run: a page with fingers down keeps talking
+                if touch.down:  # hold-to-run: a page with fingers down keeps talking
                     try:
                         text = await asyncio.wait_for(ws.receive_text(), TOUCH_SILENCE_S)
                     except TimeoutError:
                         runner.touch({})
-                        touching[0] = False
+                        touch.set_down(False)
                         runner.submit({"cmd": "note", "text": TOUCH_SILENCE_MESSAGE})
                         continue
                 else:
                     text = await ws.receive_text()
-                reply = _handle(runner, text, touching)
+                reply = _handle(runner, text, touch)
                 if reply is not None and not replies.full():
                     replies.put_nowait(json.dumps(reply))
         except WebSocketDisconnect:
@@ -180,7 +204,8 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
             sender.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await sender
-            if touching[0]:  # a page that went away cannot lift its fingers: lift them
+            if touch.down:  # a page that went away cannot lift its fingers: lift them
+                touch.set_down(False)
                 with contextlib.suppress(Exception):
                     runner.touch({})
 
@@ -207,9 +232,9 @@ async def _send_states(ws: WebSocket, runner: DashboardRunner, replies: asyncio.
         await asyncio.sleep(poll)
 
 
-def _handle(runner: DashboardRunner, text: str, touching: list[bool] | None = None) -> dict | None:
-    """Carry out one browser message; returns an error reply or None.  ``touching[0]``
-    is kept telling whether this page's last touch sample had fingertips down."""
+def _handle(runner: DashboardRunner, text: str, page: PageTouch | None = None) -> dict | None:
+    """Carry out one browser message; returns an error reply or None.  ``page`` (None:
+    no bookkeeping) keeps whether this page's last touch sample had fingertips down."""
     if len(text) > MAX_MESSAGE_BYTES:
         return {"type": "error", "message": "message too long"}
     try:
@@ -218,10 +243,13 @@ def _handle(runner: DashboardRunner, text: str, touching: list[bool] | None = No
             raise ValueError("a message must be a JSON object")
         kind = message.get("type")
         if kind == "touch":  # {"touches": [...], "t": s} or {"samples": [{"t", "touches"}]}
-            for client_t, touches in parse_touch_message(message):
+            samples = parse_touch_message(message)
+            if page is not None and not page.may_touch():
+                raise ValueError("another page is drawing on the virtual skin: wait for its lift")
+            for client_t, touches in samples:
                 runner.touch(touches, client_t)
-                if touching is not None:
-                    touching[0] = bool(touches)
+                if page is not None:
+                    page.set_down(bool(touches))
         elif kind == "command":
             runner.submit({k: v for k, v in message.items() if k != "type"})
         elif kind == "ping":
