@@ -10,6 +10,7 @@ except where ``WOVENSKIN_REQUIRE_BROWSER=1`` (CI), where that is a failure.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import time
@@ -275,6 +276,46 @@ def test_a_mouse_acting_as_two_fingers_swipes_up_with_two(page) -> None:
     _swipe_up(page)
     _rotates_about_tool_y(page, "swipe_up_2f")
     page.mouse.up()
+    assert page.problems == []
+
+
+def _centre(page) -> tuple[float, float]:
+    box = page.locator("#skin").bounding_box()
+    return box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+
+
+def test_a_mouse_hand_of_two_traces_a_clockwise_circle(page) -> None:
+    page.select_option("#fingers", "2")
+    cx, cy = _centre(page)
+    radius = 18.0 * page.locator("#skin").bounding_box()["width"] / 100.0  # 18 mm
+    page.mouse.move(cx + radius, cy)
+    page.mouse.down()
+    started = time.monotonic()
+    while (elapsed := time.monotonic() - started) < 0.9:  # 1.5 turns in 0.9 s, by the clock
+        angle = 2 * math.pi * 1.5 * elapsed / 0.9  # y grows downward: this turns clockwise
+        page.mouse.move(cx + radius * math.cos(angle), cy + radius * math.sin(angle))
+    recognised = _wait_for(page, "window.wovenskin.state.recognition.command", 3.0)
+    command = _state(page)["recognition"]["command"]
+    page.mouse.up()
+    assert recognised and command == "circle_cw_2f", f"command {command!r}"
+    assert page.problems == []
+
+
+def test_a_mouse_hand_spread_while_hovering_then_pinched_is_a_pinch_in(page) -> None:
+    page.select_option("#fingers", "2")
+    cx, cy = _centre(page)
+    page.mouse.move(cx, cy)
+    for _ in range(14):  # hovering: the wheel spreads the hand from 18 to 60 mm
+        page.mouse.wheel(0, -100)
+    _save(page, "dashboard-hand-spread.png")  # the dashed ghost fingertips
+    page.mouse.down()
+    for _ in range(16):  # pressing: the wheel brings the fingertips together (to 12 mm)
+        page.mouse.wheel(0, 100)
+        time.sleep(0.02)
+    recognised = _wait_for(page, "window.wovenskin.state.recognition.command", 3.0)
+    command = _state(page)["recognition"]["command"]
+    page.mouse.up()
+    assert recognised and command == "pinch_in_2f", f"command {command!r}"
     assert page.problems == []
 
 

@@ -159,6 +159,13 @@ function updateSkin(skin) {
     skinCtx.strokeStyle = "rgba(255,255,255,0.8)"; skinCtx.lineWidth = 1.5;
     skinCtx.beginPath(); skinCtx.arc(tip.x_mm * mm.x, tip.y_mm * mm.y, 6 * mm.x, 0, 2 * Math.PI); skinCtx.stroke();
   }
+  if (hover && pointers.size === 0 && Number($("fingers").value) > 1) { // the hand, before it lands
+    skinCtx.setLineDash([3, 3]); skinCtx.strokeStyle = "rgba(255,255,255,0.45)"; skinCtx.lineWidth = 1;
+    for (const tip of handTips(0, hover, 0, handSpread())) {
+      skinCtx.beginPath(); skinCtx.arc(tip.x_mm * mm.x, tip.y_mm * mm.y, 6 * mm.x, 0, 2 * Math.PI); skinCtx.stroke();
+    }
+    skinCtx.setLineDash([]);
+  }
   if (skin.calibrating) {
     skinCtx.fillStyle = "rgba(0,0,0,0.55)"; skinCtx.fillRect(0, 0, W, H);
     skinCtx.fillStyle = "#fff"; skinCtx.font = `${14 * (window.devicePixelRatio || 1)}px system-ui`;
@@ -176,7 +183,12 @@ function mmToCanvas() {
 
 // ------------------------------------------------------------------ virtual touches
 const pointers = new Map(); // pointerId -> {x_mm, y_mm, pressure, mouse}
-let spread = null; // mm between fingertips of a mouse "hand" (null: the count's default)
+// A mouse "hand" of 2 or 5 fingertips: its spread (mm: the gap of 2, the radius of 5) is
+// set with the wheel while hovering (shown as ghost fingertips) and changed with the wheel
+// while pressing (a pinch). Each press starts from the hover spread.
+let hoverSpread = null; // null: the finger count's default
+let spread = null; // while pressing
+let hover = null; // {x_mm, y_mm} of a mouse over the skin, not pressing
 const SPREAD = { 2: [10, 80, 18], 5: [5, 45, 30] }; // min, max, default (2: gap, 5: radius)
 
 function pointerMm(event) {
@@ -194,22 +206,31 @@ function pressureOf(event) { // the device's pressure where it reports one, else
 
 const forceOf = (pressure) => 0.2 + 2.8 * pressure; // N: light touch .. firm press
 
-function touchList() {
+function handTips(id, p, force_n, s) { // the fingertips of a mouse hand centred on p
   const fingers = Number($("fingers").value);
+  if (fingers === 1) return [{ id, x_mm: p.x_mm, y_mm: p.y_mm, force_n }];
+  if (fingers === 2) {
+    return [
+      { id: id * 10, x_mm: p.x_mm - s / 2, y_mm: p.y_mm, force_n },
+      { id: id * 10 + 1, x_mm: p.x_mm + s / 2, y_mm: p.y_mm, force_n },
+    ];
+  }
+  const tips = [];
+  for (let k = 0; k < 5; k++) { // thumb low left, four fingers above, on a circle
+    const angle = (-200 + k * 55) * Math.PI / 180;
+    tips.push({ id: id * 10 + k, x_mm: p.x_mm + s * Math.cos(angle), y_mm: p.y_mm + s * Math.sin(angle), force_n });
+  }
+  return tips;
+}
+
+const handSpread = () => spread ?? hoverSpread ?? SPREAD[Number($("fingers").value)]?.[2] ?? 0;
+
+function touchList() {
   const tips = [];
   for (const [id, p] of pointers) {
     const force_n = forceOf(p.pressure);
-    if (!p.mouse || fingers === 1) { tips.push({ id, x_mm: p.x_mm, y_mm: p.y_mm, force_n }); continue; }
-    const s = spread ?? SPREAD[fingers][2];
-    if (fingers === 2) {
-      tips.push({ id: id * 10, x_mm: p.x_mm - s / 2, y_mm: p.y_mm, force_n });
-      tips.push({ id: id * 10 + 1, x_mm: p.x_mm + s / 2, y_mm: p.y_mm, force_n });
-    } else {
-      for (let k = 0; k < 5; k++) { // thumb low left, four fingers above, on a circle
-        const angle = (-200 + k * 55) * Math.PI / 180;
-        tips.push({ id: id * 10 + k, x_mm: p.x_mm + s * Math.cos(angle), y_mm: p.y_mm + s * Math.sin(angle), force_n });
-      }
-    }
+    if (!p.mouse) tips.push({ id, x_mm: p.x_mm, y_mm: p.y_mm, force_n }); // one finger each
+    else tips.push(...handTips(id, p, force_n, handSpread()));
   }
   return tips;
 }
@@ -222,13 +243,16 @@ const sample = (event) => ({ t: event.timeStamp / 1000, touches: touchList() });
 skinCanvas.addEventListener("pointerdown", (event) => {
   event.preventDefault();
   skinCanvas.setPointerCapture(event.pointerId);
-  if (event.pointerType === "mouse") spread = null;
+  if (event.pointerType === "mouse") { spread = null; hover = null; }
   pointers.set(event.pointerId, { ...pointerMm(event), pressure: pressureOf(event), mouse: event.pointerType === "mouse" });
   sendTouches([sample(event)]);
 });
 skinCanvas.addEventListener("pointermove", (event) => {
   const p = pointers.get(event.pointerId);
-  if (!p) return;
+  if (!p) { // hovering: where the ghost fingertips of a mouse hand are drawn
+    hover = event.pointerType === "mouse" ? pointerMm(event) : null;
+    return;
+  }
   const events = event.getCoalescedEvents ? event.getCoalescedEvents() : [];
   const samples = [];
   for (const e of events.length ? events : [event]) { // every sample the device gave
@@ -239,9 +263,13 @@ skinCanvas.addEventListener("pointermove", (event) => {
 });
 for (const kind of ["pointerup", "pointercancel", "lostpointercapture"]) {
   skinCanvas.addEventListener(kind, (event) => {
-    if (pointers.delete(event.pointerId)) sendTouches([sample(event)]);
+    if (pointers.delete(event.pointerId)) {
+      if (pointers.size === 0) spread = null; // the next press starts from the hover spread
+      sendTouches([sample(event)]);
+    }
   });
 }
+skinCanvas.addEventListener("pointerleave", () => { hover = null; });
 function liftAll() { // the page loses the pointer (another window, hidden tab): lift every finger
   if (pointers.size === 0) return;
   pointers.clear();
@@ -254,12 +282,14 @@ setInterval(() => {
 }, 250);
 window.addEventListener("blur", liftAll);
 document.addEventListener("visibilitychange", () => { if (document.hidden) liftAll(); });
-skinCanvas.addEventListener("wheel", (event) => { // pinch a mouse hand
+skinCanvas.addEventListener("wheel", (event) => { // hovering: spread the hand; pressing: pinch
   const fingers = Number($("fingers").value);
-  if (fingers === 1 || pointers.size === 0) return;
+  if (fingers === 1) return;
   event.preventDefault();
-  const [low, high, start] = SPREAD[fingers];
-  spread = Math.max(low, Math.min(high, (spread ?? start) + (event.deltaY > 0 ? -3 : 3)));
+  const [low, high] = SPREAD[fingers];
+  const next = Math.max(low, Math.min(high, handSpread() + (event.deltaY > 0 ? -3 : 3)));
+  if (pointers.size === 0) { hoverSpread = next; return; }
+  spread = next;
   sendTouches([sample(event)]);
 }, { passive: false });
 
@@ -382,7 +412,7 @@ $("speed").addEventListener("input", () => { $("speed-value").textContent = `${M
 $("speed").addEventListener("change", () => command("speed", { value: Number($("speed").value) }));
 $("autoplay").addEventListener("change", () => command("autoplay", { on: $("autoplay").checked }));
 $("switch").addEventListener("click", () => command("switch", { skin: $("skin-spec").value.trim(), robot: $("robot-spec").value.trim() }));
-$("fingers").addEventListener("change", () => { spread = null; });
+$("fingers").addEventListener("change", () => { spread = null; hoverSpread = null; });
 window.addEventListener("keydown", (event) => { // space: stop, wherever the focus is but a text field
   const el = document.activeElement;
   if (event.code !== "Space" || (el && el.tagName === "INPUT" && el.type !== "range" && el.type !== "checkbox")) return;
