@@ -375,6 +375,49 @@ def test_the_page_draws_a_ur_arm_at_the_joints_it_reports(tmp_path) -> None:
         runner.close()
 
 
+def test_a_techman_arm_is_driven_from_the_page_through_its_listen_node(tmp_path) -> None:
+    from wovenskin.robots.techman import FakeListenNode, TechmanRobot
+
+    with FakeListenNode() as node:
+
+        def opener(skin: str, robot: str):
+            arm = TechmanRobot("127.0.0.1", node.listen_port, node.state_port, timeout_s=0.5)
+            return open_session(
+                skin, arm, recognizer=ContactMeans("swipe_up"), poses=tmp_path / "poses.toml"
+            )
+
+        runner = DashboardRunner(opener, "sim:auto=0,seed=4", f"tm:127.0.0.1:{node.listen_port}")
+        runner.start()
+        try:
+            assert _wait(lambda: runner.latest() and not runner.latest()["skin"]["calibrating"])
+            state = runner.latest()
+            assert len(state["robot"]["geoms"]) == len(runner.describe()["scene"]["geoms"])
+            start = np.asarray(state["robot"]["tcp"]["pos"])
+            runner.touch({1: Fingertip(50.0, 70.0, 1.5)})  # the page's finger
+            assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+
+            def streaming() -> bool:
+                return any(
+                    line.startswith("SetContinueVLine(") and line != "SetContinueVLine(0,0,0,0,0,0)"
+                    for line in node.scripts
+                )
+
+            def travel() -> float:
+                return float(np.linalg.norm(runner.latest()["robot"]["tcp"]["pos"] - start))
+
+            assert _wait(streaming)  # velocities go to the arm in velocity mode
+            assert _wait(lambda: travel() > 0.002)  # and the arm reports that it moved
+            runner.touch({})  # lift-off: the command ends, the arm is brought to rest
+            assert _wait(lambda: runner.latest()["recognition"]["command"] is None)
+            assert _wait(lambda: node.scripts[-1] == "SetContinueVLine(0,0,0,0,0,0)")
+            assert _wait(lambda: runner.latest()["robot"]["tcp_speed"] < 1e-3)
+        finally:
+            runner.close()
+        assert not node.velocity_mode  # closing the page's session leaves velocity mode
+        assert "StopContinueVmode()" in node.scripts[-4:]
+        assert node.violations == []
+
+
 def test_sockets_from_another_site_are_refused(runner) -> None:
     client = TestClient(create_app(runner))
     with (
