@@ -246,3 +246,64 @@ def test_pose_conversion_round_trip() -> None:
     np.testing.assert_allclose(pose_to_ur(pose), [0.1, 0.2, 0.3, *rotvec], atol=1e-12)
     with pytest.raises(RobotError):
         pose_from_ur([1, 2, 3])
+
+
+# -- a named model: kinematics of the active TCP for the safety layer ---------------------
+
+
+def _consistent(model_name: str, tool_z: float = 0.15) -> tuple[FakeControl, FakeReceive]:
+    """Stand-ins whose reported TCP is the model's flange at the reported joints plus a
+    ``tool_z`` tool along the flange's z axis, as a real arm with that TCP reports it."""
+    from wovenskin.robots.ur.models import ur_model
+
+    control, receive = FakeControl(), FakeReceive()
+    pose = ur_model(model_name).flange_pose(np.asarray(receive.q))
+    tip = pose[:3, 3] + tool_z * pose[:3, 2]
+    rotvec = Rotation.from_matrix(pose[:3, :3]).as_rotvec()
+    receive.tcp = [*tip.tolist(), *rotvec.tolist()]
+    return control, receive
+
+
+def test_a_named_model_gives_the_safety_layer_the_active_tcps_kinematics() -> None:
+    from wovenskin.control.safety import default_fk, default_jacobian
+
+    control, receive = _consistent("ur10e", tool_z=0.15)
+    arm = URRobot("h", model="ur10e", control_factory=lambda h: control,
+                  receive_factory=lambda h: receive)  # fmt: skip
+    assert default_fk(arm) is not None and default_jacobian(arm) is not None
+    arm.connect()
+    q = np.asarray(receive.q)
+    np.testing.assert_allclose(arm.forward_kinematics(q)[:3, 3], receive.tcp[:3], atol=1e-9)
+    jacobian, step = arm.jacobian(q), 1e-6
+    for joint in range(6):  # its linear rows are the TCP's velocity per joint speed
+        dq = np.zeros(6)
+        dq[joint] = step
+        moved = arm.forward_kinematics(q + dq)[:3, 3] - arm.forward_kinematics(q - dq)[:3, 3]
+        np.testing.assert_allclose(jacobian[:3, joint], moved / (2 * step), atol=1e-6)
+    unnamed = URRobot("h", control_factory=lambda h: control, receive_factory=lambda h: receive)
+    assert default_fk(unnamed) is None and default_jacobian(unnamed) is None
+
+
+def test_the_wrong_model_is_refused_on_connect() -> None:
+    control, receive = _consistent("ur10e")
+    arm = URRobot("h", model="ur3e", control_factory=lambda h: control,
+                  receive_factory=lambda h: receive)  # fmt: skip
+    with pytest.raises(RobotError, match="does not move like a ur3e") as info:
+        arm.connect()
+    assert "\n" not in str(info.value)
+    assert ("disconnect",) in control.calls  # the interfaces were released
+
+
+def test_with_a_named_model_the_safety_layer_refuses_a_move_through_the_floor() -> None:
+    from wovenskin.control.safety import SafetyLayer
+
+    control, receive = _consistent("ur5e")
+    arm = URRobot("h", model="ur5e", control_factory=lambda h: control,
+                  receive_factory=lambda h: receive)  # fmt: skip
+    safe = SafetyLayer(arm)
+    safe.connect()
+    goal = np.asarray(receive.q) + np.array([0.0, 1.2, 0.0, 0.0, 0.0, 0.0])  # shoulder down
+    assert arm.forward_kinematics(goal)[2, 3] < 0.05  # the TCP would end below the floor
+    with pytest.raises(RobotError, match="outside the workspace box"):
+        safe.move_to_joints(goal)
+    assert "moveJ" not in control.names()

@@ -1,10 +1,11 @@
 """Standard Denavit-Hartenberg kinematics, shared by every arm whose table we know.
 
 A :class:`DHLink` is one row of a standard DH table; :func:`dh_transform` is that row's
-transform at a joint angle and :func:`chain_frames` the base <- frame i transforms of a
-whole table. :func:`mjcf_from_dh` writes a kinematic MuJoCo body tree from a table (each
-link body's frame is DH frame i-1 turned by joint i about its z axis), so a display or
-simulation model and the DH equations cannot drift apart: tests compare the two.
+transform at a joint angle, :func:`chain_frames` the base <- frame i transforms of a
+whole table and :func:`chain_jacobian` its geometric Jacobian.  :func:`mjcf_from_dh`
+writes a kinematic MuJoCo body tree from a table (each link body's frame is DH frame i-1
+turned by joint i about its z axis), so a display or simulation model and the DH
+equations cannot drift apart: tests compare the two.
 """
 
 from __future__ import annotations
@@ -50,6 +51,22 @@ def chain_frames(table: Sequence[DHLink], q: np.ndarray) -> list[np.ndarray]:
     for link, theta in zip(table, joints, strict=True):
         frames.append(frames[-1] @ dh_transform(link, theta))
     return frames
+
+
+def chain_jacobian(
+    table: Sequence[DHLink], q: np.ndarray, tool: np.ndarray | None = None
+) -> np.ndarray:
+    """The ``(6, n)`` geometric Jacobian, base frame, of the point ``tool`` (4x4 flange <-
+    tool; None: the flange) for a chain of revolute joints: ``[v; w] = J @ dq``."""
+    frames = chain_frames(table, q)
+    end = frames[-1] if tool is None else frames[-1] @ np.asarray(tool, dtype=float)
+    point = end[:3, 3]
+    result = np.zeros((6, len(table)))
+    for i in range(len(table)):
+        axis = frames[i][:3, 2]
+        result[:3, i] = np.cross(axis, point - frames[i][:3, 3])
+        result[3:, i] = axis
+    return result
 
 
 def _quat_wxyz(rotation: np.ndarray) -> np.ndarray:

@@ -11,7 +11,12 @@ from __future__ import annotations
 import numpy as np
 
 from wovenskin.robots.base import N_JOINTS, JointLimits
-from wovenskin.robots.dh import DHLink, chain_frames, dh_transform  # noqa: F401 (re-exported)
+from wovenskin.robots.dh import (  # noqa: F401 (DHLink, dh_transform: re-exported)
+    DHLink,
+    chain_frames,
+    chain_jacobian,
+    dh_transform,
+)
 
 DH: tuple[DHLink, ...] = (
     DHLink(d=0.1452, a=0.0, alpha=-np.pi / 2, theta_offset=0.0),
@@ -67,14 +72,7 @@ def jacobian(q: np.ndarray) -> np.ndarray:
 
     ``v`` is the linear velocity of the TCP point, ``w`` the angular velocity.
     """
-    frames = frame_transforms(q)
-    tcp = (frames[-1] @ tool_transform())[:3, 3]
-    result = np.zeros((6, N_JOINTS))
-    for i in range(N_JOINTS):
-        axis = frames[i][:3, 2]
-        result[:3, i] = np.cross(axis, tcp - frames[i][:3, 3])
-        result[3:, i] = axis
-    return result
+    return chain_jacobian(DH, _joint_vector(q), tool_transform())
 
 
 # Where the skin sits on the end link (the MJCF's "skin_patch" site), in that site's frame:

@@ -30,11 +30,14 @@ from wovenskin.robots.base import (
     RobotState,
     finite_vector,
 )
+from wovenskin.robots.dh import chain_jacobian
 from wovenskin.robots.ur.models import ur_model
 
 # UR e-series: every joint turns +-360 deg; base and shoulder of the bigger arms are the
 # slowest joints (UR10e: 120 deg/s), so that is the speed limit for all six when the arm's
 # model is not given (a named model brings its data sheet's limits, see .models).
+MAX_TOOL_LENGTH_M = 0.5  # a measured TCP further from the flange means the wrong model
+
 UR_JOINT_LIMITS = JointLimits(
     lower=np.full(6, -2 * np.pi),
     upper=np.full(6, 2 * np.pi),
@@ -92,11 +95,18 @@ class URRobot(Robot):
         model: str | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        """``model`` (``ur3e``, ``ur5e``, ``ur10e``, ``ur16e``) gives the arm's kinematics
-        for the 3D view and, unless ``limits`` is given, its data sheet's joint speeds;
-        without it the limits are the conservative :data:`UR_JOINT_LIMITS`."""
+        """``model`` (``ur3e``, ``ur5e``, ``ur10e``, ``ur16e``) gives the arm's kinematics:
+        for the 3D view, for the safety layer (``forward_kinematics`` and ``jacobian`` of
+        the arm's active TCP, measured on connect from its reported joints and TCP pose)
+        and, unless ``limits`` is given, its data sheet's joint speeds.  Without it the
+        limits are the conservative :data:`UR_JOINT_LIMITS` and the safety layer bounds
+        motion without a model."""
         self.host = host
         self.model = ur_model(model) if model is not None else None
+        self._tool = np.eye(4)  # flange <- TCP, measured on connect (named model only)
+        if self.model is not None:  # the safety layer finds these (Jacobian, FK) by name
+            self.forward_kinematics = self._forward_kinematics
+            self.jacobian = self._jacobian
         if limits is None:
             limits = self.model.limits if self.model is not None else UR_JOINT_LIMITS
         self.linear_accel = linear_accel
@@ -132,7 +142,42 @@ class URRobot(Robot):
         if not watchdog_ok:
             self._release(control, receive)
             raise RobotError(f"UR arm at {self.host} refused the RTDE watchdog")
+        if self.model is not None:
+            try:
+                self._tool = self._measured_tool(receive)
+            except RobotError:
+                self._release(control, receive)
+                raise
         self._control, self._receive = control, receive
+
+    def _measured_tool(self, receive: Any) -> np.ndarray:
+        """Flange <- TCP of the arm's active TCP, from its reported joints and TCP pose; a
+        named model that cannot explain them (the wrong arm) is refused."""
+        assert self.model is not None
+        q = np.asarray(receive.getActualQ(), dtype=float)
+        tcp = pose_from_ur(receive.getActualTCPPose())
+        if q.shape != (6,) or not np.all(np.isfinite(q)):
+            raise RobotError("UR state has no valid joint angles")
+        measured = np.eye(4)
+        measured[:3, :3], measured[:3, 3] = tcp.rotation(), tcp.position
+        tool = np.linalg.inv(self.model.flange_pose(q)) @ measured
+        length = float(np.linalg.norm(tool[:3, 3]))
+        if length > MAX_TOOL_LENGTH_M:
+            raise RobotError(
+                f"the UR arm at {self.host} does not move like a {self.model.name}: its TCP "
+                f"would be {length:.2f} m from the flange; check the model in the robot spec"
+            )
+        return tool
+
+    def _forward_kinematics(self, q: np.ndarray) -> np.ndarray:
+        """Base <- TCP (4x4) of the named model at ``q``, with the arm's active TCP."""
+        assert self.model is not None
+        return self.model.flange_pose(q) @ self._tool
+
+    def _jacobian(self, q: np.ndarray) -> np.ndarray:
+        """The 6x6 base-frame Jacobian of the active TCP of the named model at ``q``."""
+        assert self.model is not None
+        return chain_jacobian(self.model.dh, q, self._tool)
 
     @staticmethod
     def _release(control: Any, receive: Any) -> None:
