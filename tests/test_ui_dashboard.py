@@ -233,13 +233,20 @@ def test_the_socket_sends_the_scene_then_states_and_takes_commands(runner) -> No
         assert _wait(lambda: runner.latest()["safety"]["user_stopped"])
 
 
+FINGER = {"id": 1, "x_mm": 50, "y_mm": 70, "force_n": 1.5}  # a page's fingertip, as sent
+
+
+def _put_a_finger_down(ws, runner) -> None:
+    """A freshly opened page puts one finger down; the stand-in makes that ``swipe_up``."""
+    assert ws.receive_json()["type"] == "scene"
+    ws.send_text(json.dumps({"type": "touch", "touches": [FINGER]}))
+    assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+
+
 def test_a_page_that_goes_away_with_a_finger_down_lifts_it(runner) -> None:
     client = TestClient(create_app(runner))
     with client.websocket_connect("/ws") as ws:
-        assert ws.receive_json()["type"] == "scene"
-        touch = {"id": 1, "x_mm": 50, "y_mm": 70, "force_n": 1.5}
-        ws.send_text(json.dumps({"type": "touch", "touches": [touch]}))
-        assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+        _put_a_finger_down(ws, runner)
     # the socket closed with the finger down: the finger lifts, the command ends
     assert _wait(lambda: runner.latest()["recognition"]["command"] is None)
     assert _wait(lambda: runner.latest()["robot"]["tcp_speed"] < 1e-3)
@@ -248,14 +255,11 @@ def test_a_page_that_goes_away_with_a_finger_down_lifts_it(runner) -> None:
 def test_a_page_that_stops_talking_with_a_finger_down_has_it_lifted(runner) -> None:
     client = TestClient(create_app(runner))
     with client.websocket_connect("/ws") as ws:
-        assert ws.receive_json()["type"] == "scene"
-        touch = {"id": 1, "x_mm": 50, "y_mm": 70, "force_n": 1.5}
-        ws.send_text(json.dumps({"type": "touch", "touches": [touch]}))
-        assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+        _put_a_finger_down(ws, runner)
         started = time.monotonic()
         for _ in range(6):  # heartbeats every 0.25 s keep the finger down
             time.sleep(0.25)
-            ws.send_text(json.dumps({"type": "touch", "touches": [touch]}))
+            ws.send_text(json.dumps({"type": "touch", "touches": [FINGER]}))
         assert runner.latest()["recognition"]["command"] == "swipe_up"
         assert time.monotonic() - started > 1.2  # longer than the silence allowed
         # then silence, the socket still open: the finger lifts, the command ends
@@ -265,12 +269,9 @@ def test_a_page_that_stops_talking_with_a_finger_down_has_it_lifted(runner) -> N
 
 def test_one_page_draws_at_a_time(runner) -> None:
     client = TestClient(create_app(runner))
-    touch = {"id": 1, "x_mm": 50, "y_mm": 70, "force_n": 1.5}
     with client.websocket_connect("/ws") as first, client.websocket_connect("/ws") as second:
-        assert first.receive_json()["type"] == "scene"
         assert second.receive_json()["type"] == "scene"
-        first.send_text(json.dumps({"type": "touch", "touches": [touch]}))
-        assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+        _put_a_finger_down(first, runner)
         second.send_text(json.dumps({"type": "touch", "touches": []}))  # would lift the first's
         while (reply := second.receive_json())["type"] != "error":
             pass
@@ -279,7 +280,7 @@ def test_one_page_draws_at_a_time(runner) -> None:
         assert runner.latest()["recognition"]["command"] == "swipe_up"  # still held
         first.send_text(json.dumps({"type": "touch", "touches": []}))
         assert _wait(lambda: runner.latest()["recognition"]["command"] is None)
-        second.send_text(json.dumps({"type": "touch", "touches": [touch]}))  # now it may
+        second.send_text(json.dumps({"type": "touch", "touches": [FINGER]}))  # now it may
         assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
         second.send_text(json.dumps({"type": "touch", "touches": []}))
 
