@@ -328,3 +328,25 @@ def test_two_fingers_on_a_touch_screen_are_two_fingertips(page) -> None:
     finally:
         fingers.lift()
     assert page.problems == []
+
+
+@pytest.mark.parametrize("width, height", [(768, 1024), (390, 844)])  # a tablet, a phone
+def test_on_a_tablet_or_phone_the_page_fits_and_stop_stays_in_reach(
+    browser, dashboard, width, height
+) -> None:
+    context = browser.new_context(viewport={"width": width, "height": height}, has_touch=True)
+    try:
+        page = context.new_page()
+        page.goto(dashboard.url)
+        page.wait_for_function("window.wovenskin && window.wovenskin.received > 3", timeout=20000)
+        assert page.evaluate("document.documentElement.scrollWidth") <= width  # no sideways scroll
+        skin = page.locator("#skin").bounding_box()
+        assert skin["x"] >= 0 and skin["x"] + skin["width"] <= width
+        page.evaluate("window.scrollTo(0, document.body.scrollHeight)")  # down to the controls
+        stop = page.locator("#stop").bounding_box()
+        assert stop["y"] >= 0 and stop["y"] + stop["height"] <= height  # the header sticks
+        _save(page, f"dashboard-{width}x{height}.png")
+        page.click("#stop")
+        assert _wait_for(page, "window.wovenskin.state.safety.user_stopped", 5.0)
+    finally:
+        context.close()
