@@ -110,6 +110,9 @@ def test_the_page_state_is_complete_and_json(runner) -> None:
     assert "lookahead=0.03" in state["skin"]["source"]  # quick virtual touches
     described = runner.describe()
     assert described["gestures"] == [n for n in CLASS_NAMES if n != "invalid"]
+    limits = runner.session.safety.limits  # the box the 3D view draws is the enforced one
+    assert described["workspace"]["lower"] == pytest.approx(limits.workspace_lower.tolist())
+    assert described["workspace"]["upper"] == pytest.approx(limits.workspace_upper.tolist())
 
 
 def test_page_states_come_at_the_page_rate_while_control_runs_at_the_skin_rate(runner) -> None:

@@ -154,6 +154,10 @@ def test_the_page_loads_with_no_console_errors(page) -> None:
         "window.wovenskin.scene.scene.geoms.length"
     )
     assert page.locator("#perform button").count() == 14
+    assert page.evaluate("window.wovenskin.nearWorkspaceEdge") is False  # far from its faces
+    assert page.evaluate("window.wovenskin.workspaceEdgesShown") == 0  # so the box is hidden
+    page.check("#show-box")  # unless asked for
+    assert page.evaluate("window.wovenskin.workspaceEdgesShown") == 12
     assert page.locator("#bars .bar").count() == 15
     _save(page, "dashboard-idle.png")
     assert page.problems == []

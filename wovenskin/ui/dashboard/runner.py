@@ -140,10 +140,21 @@ class DashboardRunner:
             "classes": list(CLASS_NAMES),
             "gestures": [name for name in CLASS_NAMES if name != "invalid"],
             "scene": self.scene.describe() if self.scene is not None else None,
+            "workspace": self._workspace(),
             "ui_rate_hz": self.ui_rate_hz,
             "ports": _serial_ports(),
             "skin": self.skin_spec,
             "robot": self.robot_spec,
+        }
+
+    def _workspace(self) -> dict | None:
+        """The safety layer's workspace box (m, base frame), drawn in the 3D view."""
+        if self.session is None:
+            return None
+        limits = self.session.safety.limits
+        return {
+            "lower": [round(float(v), 4) for v in limits.workspace_lower],
+            "upper": [round(float(v), 4) for v in limits.workspace_upper],
         }
 
     def submit(self, command: dict) -> None:

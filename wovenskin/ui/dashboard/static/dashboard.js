@@ -63,7 +63,7 @@ function onScene(message) {
   }
   buildPerformButtons(message.gestures);
   buildBars(message.classes);
-  arm.build(message.scene);
+  arm.build(message.scene, message.workspace);
 }
 
 function onState(state) {
@@ -483,9 +483,47 @@ const arm = (() => {
   }
   renderer.domElement.addEventListener("dblclick", frame);
 
-  function build(description) {
+  // The safety layer's workspace box: its 12 edges as thin bars, shown when asked for
+  // (the "workspace" box) and, in red, whenever the TCP comes within 5 cm of a face.
+  const boxMaterial = new THREE.MeshBasicMaterial({ color: 0x4aa3ff, transparent: true, opacity: 0.3 });
+  const boxEdges = [];
+  let box = null;
+  function buildBox(workspace) {
+    for (const edge of boxEdges) scene.remove(edge);
+    boxEdges.length = 0;
+    box = workspace || null;
+    if (!box) return;
+    const [lo, hi] = [box.lower, box.upper], t = 0.003;
+    for (let axis = 0; axis < 3; axis++) { // 4 edges along each axis
+      const length = hi[axis] - lo[axis], o1 = (axis + 1) % 3, o2 = (axis + 2) % 3;
+      for (const a of [lo[o1], hi[o1]]) {
+        for (const b of [lo[o2], hi[o2]]) {
+          const size = [t, t, t]; size[axis] = length;
+          const edge = new THREE.Mesh(new THREE.BoxGeometry(...size), boxMaterial);
+          const centre = [0, 0, 0];
+          centre[axis] = (lo[axis] + hi[axis]) / 2; centre[o1] = a; centre[o2] = b;
+          edge.position.set(...centre);
+          edge.name = "workspace";
+          boxEdges.push(edge); scene.add(edge);
+        }
+      }
+    }
+  }
+  function updateBox(position) {
+    if (!box) return;
+    const near = position.some((v, k) => v - box.lower[k] < 0.05 || box.upper[k] - v < 0.05);
+    boxMaterial.color.set(near ? 0xe5484d : 0x4aa3ff);
+    boxMaterial.opacity = near ? 0.6 : 0.3;
+    for (const edge of boxEdges) edge.visible = near || $("show-box").checked;
+    page.nearWorkspaceEdge = near;
+    page.workspaceEdgesShown = boxEdges.filter((edge) => edge.visible).length;
+  }
+  $("show-box").addEventListener("change", () => { if (page.state) updateBox(page.state.robot.tcp.pos); dirty = true; });
+
+  function build(description, workspace) {
     dirty = true;
     framed = false;
+    buildBox(workspace);
     for (const m of meshes) scene.remove(m);
     meshes.length = 0;
     if (patch) { scene.remove(patch); patch = null; }
@@ -529,6 +567,7 @@ const arm = (() => {
       texture.needsUpdate = true;
     }
     const [x, y, z] = robot.tcp.pos, [qw, qx, qy, qz] = robot.tcp.quat;
+    updateBox(robot.tcp.pos);
     tcpAxes.position.set(x, y, z);
     tcpAxes.quaternion.set(qx, qy, qz, qw);
     const origin = new THREE.Vector3(x, y, z);
