@@ -210,6 +210,21 @@ def test_touch_messages_carry_one_or_several_timed_samples() -> None:
             parse_touch_message(bad)
 
 
+def test_other_devices_get_the_machines_network_addresses(monkeypatch) -> None:
+    from wovenskin.ui.dashboard import server
+
+    monkeypatch.setattr(server, "lan_addresses", lambda: ["192.168.1.23", "10.0.0.7"])
+    url = "http://127.0.0.1:8000/?token=abc"
+    assert server.other_device_urls(url, "0.0.0.0") == [
+        "http://192.168.1.23:8000/?token=abc",
+        "http://10.0.0.7:8000/?token=abc",
+    ]
+    assert server.other_device_urls(url, "127.0.0.1") == []  # nobody else can reach it
+    monkeypatch.undo()
+    addresses = server.lan_addresses()  # the real ones: whatever this machine has
+    assert all(not a.startswith("127.") and a.count(".") == 3 for a in addresses)
+
+
 def test_only_loopback_addresses_go_without_a_token() -> None:
     assert not needs_token("127.0.0.1") and not needs_token("localhost")
     assert needs_token("0.0.0.0") and needs_token("192.168.1.20")

@@ -969,7 +969,7 @@ def _run_dashboard(
     from wovenskin.control.session import open_session
     from wovenskin.control.trace import TraceWriter
     from wovenskin.ui.dashboard.runner import DashboardRunner
-    from wovenskin.ui.dashboard.server import needs_token, new_token, serve
+    from wovenskin.ui.dashboard.server import needs_token, new_token, other_device_urls, serve
 
     if not 30.0 <= ui_rate <= 60.0:
         raise ValueError(f"--ui-rate must be 30-60 updates per second, got {ui_rate}")
@@ -996,6 +996,8 @@ def _run_dashboard(
 
     def ready(url: str) -> None:
         console.print(f"wovenskin dashboard: [bold]{url}[/bold]  (Ctrl-C quits)")
+        for other in other_device_urls(url, host):  # --host 0.0.0.0: a tablet on the network
+            console.print(f"  from another device: [bold]{other}[/bold]", highlight=False)
         console.print(f"skin {runner.skin_spec}, robot {runner.robot_spec}", highlight=False)
         if open_browser and _has_desktop():
             webbrowser.open(url)

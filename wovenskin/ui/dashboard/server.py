@@ -81,6 +81,34 @@ def same_origin(origin: str | None, host: str | None) -> bool:
     return host is not None and urlsplit(origin).netloc.lower() == host.lower()
 
 
+def lan_addresses() -> list[str]:
+    """This machine's IPv4 addresses on its networks (no loopback), for a tablet to use.
+
+    From the host name's addresses and from the source address the system would route
+    private networks through (a UDP ``connect`` sends nothing); empty when offline."""
+    import socket
+
+    found: set[str] = set()
+    with contextlib.suppress(OSError):
+        for info in socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET):
+            found.add(str(info[4][0]))
+    for probe in ("10.255.255.255", "172.31.255.255", "192.168.255.255"):
+        with contextlib.suppress(OSError), socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp:
+            udp.connect((probe, 9))
+            found.add(str(udp.getsockname()[0]))
+    return sorted(a for a in found if not a.startswith(("127.", "0.")))
+
+
+def other_device_urls(url: str, host: str) -> list[str]:
+    """The page's address as other devices reach it, when ``host`` binds every address."""
+    if host not in ("0.0.0.0", "::"):
+        return []
+    from urllib.parse import urlsplit, urlunsplit
+
+    parts = urlsplit(url)
+    return [urlunsplit(parts._replace(netloc=f"{ip}:{parts.port}")) for ip in lan_addresses()]
+
+
 def parse_touches(items: object) -> dict[int, Fingertip]:
     """``[{"id", "x_mm", "y_mm", "force_n"}, ...]`` -> ``{id: Fingertip}``; ValueError if bad."""
     if not isinstance(items, list):
