@@ -45,7 +45,6 @@ COMMANDS = (
     "perform",
     "autoplay",
     "switch",
-    "note",
 )
 DEFAULT_SIM_LOOKAHEAD = "0.03"  # s of frames the simulated skin renders ahead (touch latency)
 
@@ -163,6 +162,10 @@ class DashboardRunner:
             raise ValueError(f"unknown dashboard command: {str(command)[:80]}")
         self._commands.put(command)
 
+    def note(self, text: str) -> None:
+        """Add a line to the page's messages (from any thread; the session thread writes it)."""
+        self._commands.put({"cmd": "note", "text": str(text)[:200]})
+
     def touch(self, touches: dict[int, Any], client_t: float | None = None) -> None:
         """Put virtual fingertips on the simulated skin (``{id: Fingertip}``), at
         ``client_t`` on the page's clock when given (see ``SimulatedSkinSource.set_touches``)."""
@@ -190,12 +193,8 @@ class DashboardRunner:
         self.scene = ArmScene.for_robot(session.robot)
         if self.scene is None:
             session.state.messages.append("no kinematic model of this arm: the view shows the TCP")
-        elif type(session.robot).__module__.startswith("wovenskin.robots.ur") and not getattr(
-            session.robot, "model", None
-        ):
-            session.state.messages.append(
-                "UR model not given (ur:HOST?model=ur10e, say): the view draws a UR5e"
-            )
+        elif self.scene.caveat:
+            session.state.messages.append(self.scene.caveat)
         self._gesture, self._stops_seen = None, 0
         return session
 
@@ -318,8 +317,8 @@ class DashboardRunner:
             if source is None:
                 raise ValueError("only the simulated skin has a simulated person")
             source.autonomous = bool(command.get("on", True))
-        elif name == "note":  # a line for the page's messages (from the server)
-            session.state.messages.append(str(command.get("text", ""))[:200])
+        elif name == "note":  # from note(), never from a page
+            session.state.messages.append(command["text"])
         elif name == "switch":
             self._switch(
                 str(command.get("skin") or self.skin_spec),

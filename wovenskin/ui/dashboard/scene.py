@@ -44,8 +44,16 @@ class GeomShape:
 class ArmScene:
     """Shapes and poses of an arm model (see the module docstring)."""
 
-    def __init__(self, model: mujoco.MjModel, skin_site: str, up: np.ndarray, right: np.ndarray):
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        skin_site: str,
+        up: np.ndarray,
+        right: np.ndarray,
+        caveat: str = "",
+    ) -> None:
         self.model = model
+        self.caveat = caveat  # how the drawing may differ from the arm, for the page
         self.data = mujoco.MjData(model)
         self._geoms: list[int] = []
         self.shapes: list[GeomShape] = []
@@ -78,9 +86,14 @@ class ArmScene:
         if module.startswith("wovenskin.robots.ur"):
             from wovenskin.robots.ur import models
 
-            arm = getattr(robot, "model", None) or models.ur_model(models.DEFAULT_DISPLAY_MODEL)
+            arm = getattr(robot, "model", None)
+            caveat = ""
+            if arm is None:
+                arm = models.ur_model(models.DEFAULT_DISPLAY_MODEL)
+                drawn = "UR" + arm.name[2:]  # ur5e -> UR5e, as Universal Robots writes it
+                caveat = f"UR model not given (ur:HOST?model=ur10e, say): the view draws a {drawn}"
             return cls(arm.mujoco_model(), models.SKIN_SITE, models.SKIN_UP_AXIS,
-                       models.SKIN_RIGHT_AXIS)  # fmt: skip
+                       models.SKIN_RIGHT_AXIS, caveat)  # fmt: skip
         return None
 
     def describe(self) -> dict:

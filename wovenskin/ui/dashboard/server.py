@@ -219,7 +219,7 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
                     except TimeoutError:
                         runner.touch({})
                         touch.set_down(False)
-                        runner.submit({"cmd": "note", "text": TOUCH_SILENCE_MESSAGE})
+                        runner.note(TOUCH_SILENCE_MESSAGE)
                         continue
                 else:
                     text = await ws.receive_text()
