@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from wovenskin.recognition.commandlog import Command
 from wovenskin.recognition.event_scoring import (
     aggregate,
+    motion_starts,
     per_class_table,
     score_commands,
     score_stream,
@@ -133,6 +134,97 @@ def test_score_stream_uses_the_stream_events_and_length() -> None:
     s = score_stream(log((2.2, "swipe_up"), (2.6, None), (6.1, "push")), stream)
     assert (s.duration_s, s.n_detected, s.n_false, s.n_invalid_acted) == (12.0, 1, 1, 1)
     assert s.false_per_min == pytest.approx(5.0)
+
+
+def test_motion_latency_from_known_motion_starts() -> None:
+    commands = log((1.2, "swipe_up"), (1.55, None), (3.4, "push"), (3.7, None))
+    motion = [1.1, 3.05, None, float("nan")]  # unknown for the invalid and the circle
+    s = score_commands(commands, STARTS, ENDS, LABELS, 60.0, motion_start_s=motion)
+    assert s.latencies_s == pytest.approx([0.2, 0.4])
+    assert s.motion_latencies_s == pytest.approx([0.1, 0.35])
+    assert s.median_motion_latency_s == pytest.approx(0.225)
+    assert s.to_dict()["median_motion_latency_s"] == pytest.approx(0.225)
+    # A command issued before the motion starts has a negative motion latency.
+    early = score_commands(log((1.05, "push")), [1.0], [1.5], ["push"], 10.0, motion_start_s=[1.2])
+    assert early.motion_latencies_s == pytest.approx([-0.15])
+    # Unknown motion starts: no motion latency, as before.
+    plain = score_commands(commands, STARTS, ENDS, LABELS, 60.0)
+    assert plain.motion_latencies_s == [] and plain.median_motion_latency_s is None
+    assert plain.to_dict()["median_motion_latency_s"] is None
+    with pytest.raises(ValueError, match="3 motion starts for 4 events"):
+        score_commands(commands, STARTS, ENDS, LABELS, 60.0, motion_start_s=[1.0, 2.0, 3.0])
+
+
+def test_aggregate_pools_motion_latencies_and_tables_show_them() -> None:
+    a = score_commands(log((1.1, "push")), [1.0], [1.5], ["push"], 60.0, motion_start_s=[1.05])
+    b = score_commands(
+        log((1.3, "push"), (1.6, None), (2.4, "push")),
+        [1.0, 2.0],
+        [1.5, 2.5],
+        ["push", "push"],
+        60.0,
+        motion_start_s=[1.1, 2.1],
+    )
+    c = score_commands(log((1.3, "push")), [1.0], [1.5], ["push"], 60.0)  # motion unknown
+    total = aggregate([a, b, c])
+    # Pooled (0.05, 0.2, 0.3), not a median of medians (0.05, 0.25).
+    assert total.motion_latencies_s == pytest.approx([0.05, 0.2, 0.3])
+    assert total.median_motion_latency_s == pytest.approx(0.2)
+    table = scores_table([("a", a), ("c", c)], total)
+    assert "motion ms" in [str(col.header) for col in table.columns]
+    motion_column = next(col for col in table.columns if str(col.header) == "motion ms")
+    assert list(motion_column.cells) == ["50", "-", "200"]
+
+
+def stream_with_events(events_metadata) -> LabelledStream:
+    return LabelledStream(
+        frames=np.zeros((2400, 2, 2), dtype=np.float32),
+        t=np.arange(2400) / 200.0,
+        sample_rate_hz=200.0,
+        event_start_s=np.array([2.0, 6.0]),
+        event_end_s=np.array([2.5, 6.5]),
+        event_labels=np.array(["swipe_up", "invalid"]),
+        metadata={} if events_metadata is None else {"events": events_metadata},
+    )
+
+
+def test_score_stream_takes_motion_starts_from_simulated_metadata() -> None:
+    events = [
+        {"label": "swipe_up", "phases": {"landing_s": 2.0, "motion_start_s": 2.08}},
+        {"label": "invalid", "phases": {"landing_s": 6.0, "motion_start_s": 6.0}},
+    ]
+    stream = stream_with_events(events)
+    assert motion_starts(stream) == pytest.approx([2.08, 6.0])
+    s = score_stream(log((2.2, "swipe_up"), (2.6, None)), stream)
+    assert s.latencies_s == pytest.approx([0.2])
+    assert s.median_motion_latency_s == pytest.approx(0.12)
+    # Metadata that does not line up with the events is not used.
+    for bad in (None, events[:1], [events[1], events[0]], "events"):
+        stream = stream_with_events(bad)
+        assert motion_starts(stream) is None
+        assert score_stream(log((2.2, "swipe_up")), stream).median_motion_latency_s is None
+    # An event without phases has an unknown motion start.
+    partial = stream_with_events([{"label": "swipe_up"}, events[1]])
+    assert np.isnan(motion_starts(partial)[0])
+    assert score_stream(log((2.2, "swipe_up")), partial).motion_latencies_s == []
+
+
+def test_simulated_streams_score_motion_latencies() -> None:
+    from wovenskin.sim.stream import simulate_stream
+
+    stream = simulate_stream(8.0, seed=3)
+    starts = motion_starts(stream)
+    assert starts is not None and len(starts) == len(stream.event_labels) >= 1
+    assert np.all(starts >= stream.event_start_s - 1e-9) and np.all(starts <= stream.event_end_s)
+    perfect = [
+        Command(float(end), label)
+        for end, label in zip(stream.event_end_s, stream.event_labels, strict=True)
+        if label != "invalid"
+    ]
+    s = score_stream(perfect, stream)
+    valid = stream.event_labels != "invalid"
+    expected = (stream.event_end_s - starts)[valid]
+    assert s.motion_latencies_s == pytest.approx(expected.tolist())
 
 
 classes = st.sampled_from(["swipe_up", "push", "invalid"])

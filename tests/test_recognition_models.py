@@ -180,6 +180,7 @@ def test_resolve_hparams_completes_defaults() -> None:
         "dropout",
         "window_norm",
         "motion_channel",
+        "level_input",
     }
     assert resolve_hparams("tcn") == resolve_hparams("tcn", {})
     rebuilt = build_model("tcn", 6, 8, 30, 4, **resolve_hparams("tcn"))
@@ -201,18 +202,25 @@ def test_window_norm_separates_shape_from_strength(name: str) -> None:
     model = build_model(name, 6, 8, 10, 3).eval()
     x = torch.randn(2, 10, 6, 8)
     with torch.inference_mode():
-        assert not torch.allclose(model(x), model(3.0 * x), atol=1e-4)  # the level differs
-        _zero_level_weights(model)
-        assert torch.allclose(model(x), model(3.0 * x), atol=1e-5)  # the shape is the same
+        # By default the output does not depend on strength at all (GESTURES.md: skins
+        # differ 10x; finger count must come from shape), over a 30x range of gains.
+        for gain in (0.3, 3.0, 10.0):
+            assert torch.allclose(model(x), model(gain * x), atol=1e-5)
         # a window of tiny noise is not blown up to full scale: the floor holds it down
         quiet = 1e-4 * x
         assert not torch.allclose(model(quiet), model(x), atol=1e-4)
+    # With the level as an input, strength reaches the network (the earlier design).
+    torch.manual_seed(7)
+    leveled = build_model(name, 6, 8, 10, 3, level_input=True).eval()
+    with torch.inference_mode():
+        assert not torch.allclose(leveled(x), leveled(3.0 * x), atol=1e-4)
+        _zero_level_weights(leveled)
+        assert torch.allclose(leveled(x), leveled(3.0 * x), atol=1e-5)
 
 
 def test_without_window_norm_the_scale_reaches_the_network() -> None:
     torch.manual_seed(8)
     model = build_model("tcn", 6, 8, 10, 3, window_norm=False).eval()
-    _zero_level_weights(model)
     x = torch.randn(2, 10, 6, 8)
     with torch.inference_mode():
         assert not torch.allclose(model(x), model(3.0 * x), atol=1e-4)

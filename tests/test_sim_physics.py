@@ -425,3 +425,30 @@ def test_an_explicit_presence_renders_like_the_one_derived_from_the_force():
 def test_a_bad_presence_is_refused(presence):
     with pytest.raises(ValueError, match="presence"):
         ContactTrack(np.zeros(5), np.zeros(5), np.ones(5), 5.0, 4.0, presence=presence)
+
+
+def test_field_spread_widens_a_fingertip_as_a_gaussian_blur_would():
+    from scipy.ndimage import gaussian_filter
+
+    base = SkinPhysics().without_noise()
+    press = ContactTrack(np.full(3, 45.0), np.full(3, 63.0), np.full(3, 1.0), 5.0, 5.0)
+    footprint = {}
+    for spread in (0.0, 7.0):
+        model = SkinModel(replace(base, field_spread_mm=spread), seed=1)
+        frame = model.pressure_response([press], 3)[1]
+        footprint[spread] = int((frame > 0.25 * frame.max()).sum())
+    assert footprint[0.0] == 1 and footprint[7.0] >= 3  # 1 channel -> 3-4 channels
+
+    # The separable product equals a Gaussian filter of the supersampled response.
+    sharp = SkinModel(base, seed=1)
+    spread = SkinModel(replace(base, field_spread_mm=4.0), seed=1)
+    track = ContactTrack(np.full(3, 37.0), np.full(3, 50.0), np.full(3, 1.5), 6.0, 5.0)
+    py, px, s = sharp._py, sharp._px, sharp.supersample
+    image = np.zeros(3 * py * px + 1)
+    sharp._splat(track, 0, 3, np.arange(3), image)
+    local = -np.expm1(-image[:-1].reshape(3, py, px)[1] / base.pressure_scale_kpa)
+    blurred = gaussian_filter(local, sigma=(4.0 / sharp._dy, 4.0 / sharp._dx), mode="constant")
+    rows, cols = sharp.layout.shape
+    expected = (blurred.reshape(rows, s, cols, s) * sharp._sub_weight[:, None, :]).mean(axis=(1, 3))
+    got = spread.pressure_response([track], 3)[1]
+    assert np.allclose(got, expected, atol=2e-5 * expected.max() + 1e-9)

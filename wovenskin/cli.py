@@ -484,17 +484,25 @@ def dataset(
     more_streams: list[Path] = typer.Argument(None, help="More streams (after --streams)."),
     recordings: int = typer.Option(140, help="Simulated recordings, each a new person and skin."),
     windows: int = typer.Option(1000, help="Gesture windows per recording."),
-    invalid_windows: int = typer.Option(200, help="Windows of the invalid class per recording."),
+    invalid_windows: int = typer.Option(400, help="Windows of the invalid class per recording."),
     seconds: float = typer.Option(120.0, help="Length of each simulated recording."),
+    recipe: str = typer.Option(
+        "stream",
+        help="stream: windows at every position, labelled by what they show; "
+        "overlay: the paper's augmentation (gesture slices on background noise).",
+    ),
     seed: int = typer.Option(0, help="Random seed: the same seed gives the same files."),
     workers: int = typer.Option(2, help="Worker processes."),
     dtype: str = typer.Option("float16", help="Storage of the windows: float16 or float32."),
     overwrite: bool = typer.Option(False, help="Replace an existing data set."),
 ) -> None:
-    """Build a window data set (the paper's augmentation) from simulation or labelled streams."""
+    """Build a window data set from simulation or labelled streams."""
     from wovenskin.recognition.compare import dataset_progress
     from wovenskin.recognition.datasets import build_dataset_from_streams, generate_sim_dataset
     from wovenskin.recognition.report import DatasetSummary
+    from wovenskin.recognition.windows import WindowSettings
+
+    settings = WindowSettings(recipe=recipe)
 
     files = [*(streams or []), *(more_streams or [])]
     bar, update = dataset_progress(console, "windowing streams" if files else "simulating")
@@ -502,12 +510,12 @@ def dataset(
         if files:
             ds = build_dataset_from_streams(
                 out, files, windows, invalid_windows, seed=seed, workers=workers,
-                progress=update, dtype=dtype, overwrite=overwrite,
+                progress=update, dtype=dtype, overwrite=overwrite, settings=settings,
             )  # fmt: skip
         else:
             ds = generate_sim_dataset(
                 out, recordings, windows, invalid_windows, seconds, seed=seed, workers=workers,
-                progress=update, dtype=dtype, overwrite=overwrite,
+                progress=update, dtype=dtype, overwrite=overwrite, settings=settings,
             )  # fmt: skip
     summary = DatasetSummary.of(ds)
     console.print(summary.table(ds.class_names))
@@ -534,7 +542,9 @@ def train(
     hparams: str = typer.Option("", help="Model hyperparameters (JSON): '{\"n_layers\": 2}'."),
     resume: bool = typer.Option(False, help="Continue an interrupted run in the same --out."),
     time_budget: float = typer.Option(None, help="Minutes; no epoch starts that would overrun."),
-    threads: int = typer.Option(2, help="Torch threads."),
+    threads: int = typer.Option(
+        1, help="Torch threads (one is fastest on a busy 2-core machine: measure)."
+    ),
 ) -> None:
     """Train a gesture classifier (PyTorch) with early stopping, checkpoints and resume."""
     _require_torch("wovenskin train")
@@ -741,8 +751,15 @@ def _eval_captures(
 @app.command()
 @user_errors
 def compare(
-    data: Path = typer.Option(
-        None, help="Window data set (default: runs/datasets/sim-default, built if missing)."
+    data: list[Path] = typer.Option(
+        None,
+        help="Window data set (default: runs/datasets/sim-default, built if missing); give "
+        "--data twice (e.g. a stream-recipe and an overlay-recipe set) to compare recipes.",
+    ),
+    streams: list[Path] = typer.Option(
+        None,
+        help="Labelled streams (.npz) to run each model's whole pipeline on: event F1, "
+        "false activations/min and latency beside the window figures.",
     ),
     out: Path = typer.Option(Path("runs/compare"), help="Directory of checkpoints and reports."),
     models: str = typer.Option("transformer,bilstm,tcn", help="Comma-separated models."),
@@ -758,7 +775,9 @@ def compare(
     ),
     resume: bool = typer.Option(False, help="Continue interrupted runs in --out."),
     time_budget: float = typer.Option(None, help="Minutes per model and split."),
-    threads: int = typer.Option(2, help="Torch threads for training."),
+    threads: int = typer.Option(
+        1, help="Torch threads for training (one is fastest on a busy 2-core machine)."
+    ),
     latency_repeats: int = typer.Option(300, help="Timed batch-1 calls per model."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
 ) -> None:
@@ -780,7 +799,7 @@ def compare(
     if any(not isinstance(v, dict) for v in parameters.values()):
         raise ValueError("--hparams must map model names to JSON objects")
     ui = err_console if json_out else console
-    ds = _open_or_build_dataset(data, ui)
+    datasets = [_open_or_build_dataset(d, ui) for d in (data or [None])]
     options = TrainOptions(
         epochs=epochs, batch_size=batch_size, lr=lr, seed=seed, patience=patience,
         split_seed=split_seed, resume=resume,
@@ -790,18 +809,84 @@ def compare(
     def reported(model: str, split_name: str, report) -> None:
         ui.print(f"{model} / {split_name}: {report.summary()}", highlight=False, soft_wrap=True)
 
-    try:
-        with TrainProgressDisplay(ui) as show:
-            comparison = compare_models(
-                ds, out, names, splits, options, parameters, latency_repeats, show, reported
-            )
-    except KeyboardInterrupt:
-        raise _interrupted(out) from None
+    comparisons = []
+    for ds in datasets:
+        target = out if len(datasets) == 1 else out / Path(str(ds.path)).name
+        try:
+            with TrainProgressDisplay(ui) as show:
+                comparisons.append(
+                    compare_models(
+                        ds, target, names, splits, options, parameters, latency_repeats, show,
+                        reported, streams=list(streams or []),
+                    )  # fmt: skip
+                )
+        except KeyboardInterrupt:
+            raise _interrupted(target) from None
     if json_out:
-        print(json.dumps(comparison.to_dict()))
+        documents = [c.to_dict() for c in comparisons]
+        print(json.dumps(documents[0] if len(documents) == 1 else {"comparisons": documents}))
     else:
-        console.print(comparison.table())
-        console.print(f"written: {out / 'compare.json'} and an eval report per model")
+        for comparison in comparisons:
+            console.print(comparison.table())
+        console.print(f"written: compare.json in {out} (per data set) and an eval report per model")
+
+
+@bench_app.command("recognition")
+@user_errors
+def bench_recognition(
+    model: Path = typer.Option(None, help=MODEL_HELP),
+    streams_per_condition: int = typer.Option(3, help="Unseen simulated streams per condition."),
+    seconds: float = typer.Option(60.0, help="Length of each simulated stream."),
+    seed: int = typer.Option(
+        9000, help="Base seed; each stream's seed derives from it, the condition and the stream."
+    ),
+    conditions: str = typer.Option(
+        None, help="Comma-separated subset of the conditions (default: all of them)."
+    ),
+    min_probability: float = typer.Option(
+        None, help="Least class probability that counts (default: the model's recommendation)."
+    ),
+    threads: int = typer.Option(1, help="ONNX Runtime threads for the model."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """The live pipeline on unseen simulated streams by condition: F1, false alarms, latency."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from wovenskin.bench.recognition import condition_names, run_recognition_benchmark
+    from wovenskin.recognition.pipeline import load_recognizer
+
+    names = condition_names(conditions)
+    recognizer = load_recognizer(model, threads=threads)
+    settings = _pipeline_settings(recognizer, 1, 100.0, min_probability)
+    bar = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=err_console,
+    )
+    task = bar.add_task("bench recognition", total=len(names) * streams_per_condition)
+
+    def update(done: int, total: int, what: str) -> None:
+        bar.update(task, completed=done, total=total, description=f"bench recognition: {what}")
+
+    with bar:
+        result = run_recognition_benchmark(
+            recognizer, settings, names, streams_per_condition, seconds, seed, progress=update
+        )
+    for message in result.warnings:
+        _warn(message)
+    _show_bench(result, json_out)
+    if json_out:
+        err_console.print(f"wall time {result.wall_s:.1f} s", highlight=False)
 
 
 @bench_app.command("model")

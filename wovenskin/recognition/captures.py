@@ -100,6 +100,11 @@ class CaptureRecipe:
     windows_per_capture: int = 8
     symmetries: bool = True
     normalisation: CaptureNormalisation = field(default_factory=CaptureNormalisation)
+    gain: float = 1.25
+    noise: float = 0.01
+    time_stretch: float = 1.0
+    label_smoothing: float = 0.05
+    weight_decay: float = 0.01
 
     def __post_init__(self) -> None:
         for name in ("epochs", "batch_size", "patience", "frame_step", "window_frames",
@@ -109,6 +114,16 @@ class CaptureRecipe:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
         if not (math.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr must be positive, got {self.lr}")
+        for name in ("gain", "time_stretch"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 1):
+                raise ValueError(f"{name} must be a factor >= 1, got {value}")
+        if not (math.isfinite(self.noise) and self.noise >= 0):
+            raise ValueError(f"noise must not be negative, got {self.noise}")
+        if not 0 <= self.label_smoothing < 1:
+            raise ValueError(f"label_smoothing must lie in [0, 1), got {self.label_smoothing}")
+        if not (math.isfinite(self.weight_decay) and self.weight_decay >= 0):
+            raise ValueError(f"weight_decay must not be negative, got {self.weight_decay}")
 
     def resolved_hparams(self) -> dict[str, Any]:
         if self.hparams is not None:
@@ -210,6 +225,10 @@ class CaptureWindowArray:
         fixed: Sequence[tuple[int, int]],
         seed: int = 0,
         symmetries: bool = True,
+        *,
+        gain: float = 1.0,
+        noise: float = 0.0,
+        time_stretch: float = 1.0,
     ) -> None:
         if not prepared:
             raise ValueError("no captures to cut windows from")
@@ -219,6 +238,9 @@ class CaptureWindowArray:
         self.fixed = [(int(c), int(e)) for c, e in fixed]
         self.seed = int(seed)
         self.symmetries = symmetries
+        self.gain = float(gain)
+        self.noise = float(noise)
+        self.time_stretch = float(time_stretch)
         grid = next(iter(prepared.values())).shape[1:]
         self.shape = (self.random_captures.size + len(self.fixed), self.window_frames, *grid)
         self.dtype = np.dtype(np.float32)
@@ -247,8 +269,14 @@ class CaptureWindowArray:
 
     def _random_window(self, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         w = self.window_frames
-        end = len(x) - 1 if len(x) <= w else int(rng.integers(w - 1, len(x)))
-        window = window_ending(x, end, w)
+        span = w
+        if self.time_stretch > 1:  # play a span of w * rate frames back in w frames
+            rate = math.exp(rng.uniform(-1, 1) * math.log(self.time_stretch))
+            span = max(2, round(w * rate))
+        end = len(x) - 1 if len(x) <= span else int(rng.integers(span - 1, len(x)))
+        window = window_ending(x, end, span)
+        if span != w:
+            window = resample_frames(window, w)
         if self.symmetries:
             if rng.random() < 0.5:
                 window = window[:, ::-1]
@@ -256,7 +284,23 @@ class CaptureWindowArray:
                 window = window[:, :, ::-1]
             if window.shape[1] == window.shape[2] and rng.random() < 0.5:
                 window = window.transpose(0, 2, 1)
+        if self.gain > 1:
+            window = window * np.float32(math.exp(rng.uniform(-1, 1) * math.log(self.gain)))
+        if self.noise > 0:
+            window = window + np.float32(self.noise) * rng.standard_normal(
+                window.shape, dtype=np.float32
+            )
         return window
+
+
+def resample_frames(frames: np.ndarray, n: int) -> np.ndarray:
+    """``frames`` ``(T, R, C)`` linearly interpolated to ``n`` frames spanning the same time
+    (first and last frames kept)."""
+    t = np.linspace(0.0, len(frames) - 1, n)
+    lo = np.minimum(np.floor(t).astype(np.int64), len(frames) - 1)
+    hi = np.minimum(lo + 1, len(frames) - 1)
+    frac = (t - lo).astype(np.float32)[:, None, None]
+    return frames[lo] * (1 - frac) + frames[hi] * frac
 
 
 # ============================================================================ training
@@ -361,8 +405,9 @@ def _train_captures(
     fixed = _fixed_windows(prepared, val_ids, recipe)
     random_captures = np.repeat(train_ids, recipe.windows_per_capture)
     windows = CaptureWindowArray(
-        prepared, recipe.window_frames, random_captures, fixed, seed, recipe.symmetries
-    )
+        prepared, recipe.window_frames, random_captures, fixed, seed, recipe.symmetries,
+        gain=recipe.gain, noise=recipe.noise, time_stretch=recipe.time_stretch,
+    )  # fmt: skip
     labels = np.concatenate(
         [captures.labels[random_captures], captures.labels[[c for c, _ in fixed]]]
     ).astype(np.int64)
@@ -408,6 +453,9 @@ def _train_captures(
         progress=progress,
         resume=resume,
         hparams=recipe.resolved_hparams(),
+        weight_decay=recipe.weight_decay,
+        label_smoothing=recipe.label_smoothing,
+        augment=False,  # the window array draws gain and noise itself (recipe.gain, .noise)
         threads=threads,
     )
 
@@ -428,7 +476,7 @@ def train_on_captures(
     model: str | None = None,
     epochs: int | None = None,
     seed: int = 0,
-    threads: int = 2,
+    threads: int = 1,
     progress: Callable[[TrainEvent], None] | None = None,
     resume: bool = False,
     val_groups: Sequence[str] | None = None,
@@ -814,7 +862,7 @@ def leave_one_participant_out(
     model: str | None = None,
     epochs: int | None = None,
     seed: int = 0,
-    threads: int = 2,
+    threads: int = 1,
     progress: Callable[[TrainEvent], None] | None = None,
     participants: Sequence[str] | None = None,
     on_fold: Callable[[FoldResult], None] | None = None,

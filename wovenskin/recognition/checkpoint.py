@@ -305,11 +305,18 @@ def load_checkpoint(directory: str | Path) -> tuple[nn.Module, CheckpointMeta]:
     path = Path(directory) / WEIGHTS_FILE
     if not path.is_file():
         raise CheckpointError(f"checkpoint {directory} has no {WEIGHTS_FILE}")
-    model = build_model(
-        meta.model_name, meta.rows, meta.cols, meta.window, meta.n_classes, **meta.hparams
-    )
+    hparams = dict(meta.hparams)
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
+        if "level_input" not in hparams:
+            # Checkpoints made before ``level_input`` existed always fed the level.
+            lstm_in = state.get("lstm.weight_ih_l0")
+            hparams["level_input"] = any(k.startswith("level.") for k in state) or (
+                lstm_in is not None and lstm_in.shape[1] == meta.rows * meta.cols + 1
+            )
+        model = build_model(
+            meta.model_name, meta.rows, meta.cols, meta.window, meta.n_classes, **hparams
+        )
         model.load_state_dict(state)
     except Exception as exc:  # torch raises RuntimeError, pickle/zip errors, EOFError...
         first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__

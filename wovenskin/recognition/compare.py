@@ -111,7 +111,7 @@ class TrainOptions:
     val_fraction: float = DEFAULT_VAL_FRACTION
     resume: bool = False
     time_budget_s: float | None = None
-    threads: int = 2
+    threads: int = 1
 
 
 def train_on_dataset(
@@ -177,12 +177,61 @@ class SplitScore:
 
 
 @dataclass
+class StreamScore:
+    """A model's whole pipeline on labelled streams (event scoring, pooled over streams)."""
+
+    n_streams: int
+    n_events: int
+    precision: float
+    recall: float
+    f1: float
+    false_per_min: float
+    median_latency_ms: float | None
+    median_motion_latency_ms: float | None
+
+
+def score_on_streams(checkpoint_dir: str | Path, streams: Sequence[Any]) -> StreamScore:
+    """Run the live pipeline of the checkpoint's ONNX model on ``streams`` and score events."""
+    from wovenskin.recognition.event_scoring import aggregate, score_stream
+    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+    from wovenskin.recognition.pipeline import (
+        PipelineSettings,
+        arbiter_settings_for_model,
+        load_stream,
+        run_pipeline,
+    )
+
+    recognizer = OnnxRecognizer(checkpoint_dir, threads=1)
+    settings = PipelineSettings(arbiter=arbiter_settings_for_model(recognizer))
+    scores = []
+    for stream in streams:
+        labelled = load_stream(stream)
+        result = run_pipeline(labelled, recognizer, settings)
+        scores.append(score_stream(result.commands, labelled))
+    total = aggregate(scores)
+    motion = getattr(total, "median_motion_latency_s", None)
+    return StreamScore(
+        n_streams=len(scores),
+        n_events=total.n_events,
+        precision=total.precision,
+        recall=total.recall,
+        f1=total.f1,
+        false_per_min=total.false_per_min,
+        median_latency_ms=None
+        if total.median_latency_s is None
+        else 1e3 * total.median_latency_s,
+        median_motion_latency_ms=None if motion is None else 1e3 * motion,
+    )
+
+
+@dataclass
 class ComparisonRow:
     model: str
     params: int
     scores: dict[str, SplitScore] = field(default_factory=dict)
     latency_median_ms: float = float("nan")
     latency_p99_ms: float = float("nan")
+    stream: StreamScore | None = None
 
 
 @dataclass
@@ -193,10 +242,12 @@ class Comparison:
     options: dict[str, Any]
     hparams: dict[str, dict[str, Any]]
     latency_repeats: int
+    recipe: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "data_dir": self.data_dir,
+            "recipe": self.recipe,
             "splits": list(self.splits),
             "options": dict(self.options),
             "hparams": dict(self.hparams),
@@ -207,6 +258,7 @@ class Comparison:
                     "params": row.params,
                     "latency_median_ms": row.latency_median_ms,
                     "latency_p99_ms": row.latency_p99_ms,
+                    "streams": None if row.stream is None else asdict(row.stream),
                     **{split: asdict(score) for split, score in row.scores.items()},
                 }
                 for row in self.rows
@@ -214,7 +266,9 @@ class Comparison:
         }
 
     def table(self) -> Table:
-        table = Table(title=f"wovenskin compare on {self.data_dir}")
+        recipe = f" ({self.recipe} recipe)" if self.recipe else ""
+        table = Table(title=f"wovenskin compare on {self.data_dir}{recipe}")
+        with_streams = any(row.stream is not None for row in self.rows)
         table.add_column("model")
         table.add_column("params", justify="right")
         for split in self.splits:
@@ -224,6 +278,10 @@ class Comparison:
         table.add_column("ORT ms\np99", justify="right")
         table.add_column("epochs\n(best)", justify="right")
         table.add_column("train\nmin", justify="right")
+        if with_streams:
+            table.add_column("stream\nevent F1", justify="right")
+            table.add_column("false\n/min", justify="right")
+            table.add_column("latency ms\ncontact", justify="right")
         for row in self.rows:
             cells = [row.model, f"{row.params:,}"]
             for split in self.splits:
@@ -237,6 +295,17 @@ class Comparison:
                 f"{first.epochs_run} ({first.best_epoch})",
                 f"{train_s / 60:.1f}",
             ]
+            if with_streams:
+                st = row.stream
+                cells += (
+                    ["-", "-", "-"]
+                    if st is None
+                    else [
+                        f"{st.f1:.3f}",
+                        f"{st.false_per_min:.2f}",
+                        "-" if st.median_latency_ms is None else f"{st.median_latency_ms:.0f}",
+                    ]
+                )
             table.add_row(*cells)
         table.caption = (
             "accuracy and macro-F1 on validation windows (grouped: recordings, people and skins "
@@ -256,12 +325,16 @@ def compare_models(
     latency_repeats: int = LATENCY_REPEATS,
     progress: Callable[[str, TrainEvent], None] | None = None,
     on_report: Callable[[str, str, EvalReport], None] | None = None,
+    streams: Sequence[Any] = (),
 ) -> Comparison:
     """Train and score ``models`` on the same data set and split(s); write ``compare.json``.
 
     Checkpoints go to ``out_dir/<split>/<model>/`` with their evaluation reports in
     ``eval-<split>/``. ``progress(label, event)`` gets every training event, labelled
     ``"<model> / <split>"``; ``on_report(model, split, report)`` every evaluation.
+    With ``streams`` (labelled streams or their paths), each model of the first split
+    also runs the whole live pipeline on them (:func:`score_on_streams`): event F1, false
+    activations per minute and latency, the figures that matter to a user.
     """
     from wovenskin.bench.io import one_core
     from wovenskin.bench.model import measure_latency
@@ -337,6 +410,8 @@ def compare_models(
     for row in rows:
         row.latency_median_ms = float(np.median(times[row.model]) * 1e3)
         row.latency_p99_ms = float(np.percentile(times[row.model], 99) * 1e3)
+        if streams:
+            row.stream = score_on_streams(out / first / row.model, streams)
 
     comparison = Comparison(
         data_dir=str(ds.path) if ds.path is not None else "",
@@ -345,10 +420,19 @@ def compare_models(
         options=asdict(options),
         hparams=hparams,
         latency_repeats=latency_repeats,
+        recipe=_recipe_of(ds),
     )
     out.mkdir(parents=True, exist_ok=True)
     (out / COMPARE_FILE).write_text(json.dumps(comparison.to_dict(), indent=1) + "\n", "utf-8")
     return comparison
+
+
+def _recipe_of(ds: WindowDataset) -> str:
+    """How the data set's windows were drawn (``overlay`` before recipes existed)."""
+    settings = ds.meta.get("window_settings")
+    if not isinstance(settings, dict) or ds.meta.get("kind") == "captures":
+        return ""
+    return str(settings.get("recipe", "overlay"))
 
 
 def _labelled(

@@ -60,6 +60,7 @@ from scipy.sparse.csgraph import connected_components
 
 from wovenskin import __version__
 from wovenskin.gestures import CLASS_NAMES, INVALID
+from wovenskin.recognition.stream_windows import characteristic_spans, sample_stream_windows
 from wovenskin.recognition.windows import (
     SOURCE_CODES,
     SOURCE_NAMES,
@@ -573,16 +574,34 @@ def _window_stream(
     kept = FrameEvents(
         events.labels[keep], events.start[keep], events.stop[keep], events.informative_stop[keep]
     )
-    batch = sample_windows(
-        conditioned.signal,
-        conditioned.touched,
-        kept,
-        job.n_gesture,
-        job.n_invalid,
-        index[INVALID],
-        settings,
-        rng,
-    )
+    if settings.recipe == "stream":
+        motion_start, motion_stop = _motion_frames(stream)
+        if motion_start is not None and motion_stop is not None:
+            motion_start, motion_stop = motion_start[keep], motion_stop[keep]
+        span_start, span_stop = characteristic_spans(kept, motion_start, motion_stop, settings)
+        batch = sample_stream_windows(
+            conditioned.signal,
+            conditioned.touched,
+            kept,
+            span_start,
+            span_stop,
+            job.n_gesture,
+            job.n_invalid,
+            index[INVALID],
+            settings,
+            rng,
+        )
+    else:
+        batch = sample_windows(
+            conditioned.signal,
+            conditioned.touched,
+            kept,
+            job.n_gesture,
+            job.n_invalid,
+            index[INVALID],
+            settings,
+            rng,
+        )
     labels, counts = np.unique(np.asarray(stream.event_labels, dtype=str)[keep], return_counts=True)
     info = {
         "recording": names[0],
@@ -618,6 +637,29 @@ def _motion_end_s(stream: LabelledStream) -> np.ndarray | None:
         except (KeyError, TypeError, ValueError):
             continue
     return out
+
+
+def _motion_frames(stream: LabelledStream) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Per-event first and one-past-last frame of the characteristic motion (simulator
+    metadata; -1 where unknown), or ``(None, None)`` for a stream without it."""
+    details = stream.metadata.get("events")
+    if not isinstance(details, list) or len(details) != len(stream.event_labels):
+        return None, None
+    start = np.full(len(details), -1, dtype=np.int64)
+    stop = np.full(len(details), -1, dtype=np.int64)
+    t = np.asarray(stream.t, dtype=np.float64)
+    for i, (detail, label) in enumerate(zip(details, stream.event_labels, strict=True)):
+        try:
+            if detail["label"] != str(label) or detail["label"] == INVALID:
+                continue
+            begin = float(detail["phases"]["motion_start_s"])
+            end = float(detail["phases"]["motion_end_s"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        if np.isfinite(begin) and np.isfinite(end) and end > begin:
+            start[i] = int(np.searchsorted(t, begin, side="left"))
+            stop[i] = int(np.searchsorted(t, end, side="left"))
+    return start, stop
 
 
 def _digest(document) -> str:
@@ -677,7 +719,7 @@ def generate_sim_dataset(
     out_dir: str | os.PathLike,
     n_recordings: int = 140,
     windows_per_recording: int = 1000,
-    invalid_windows_per_recording: int = 200,
+    invalid_windows_per_recording: int = 400,
     seconds_per_recording: float = 120.0,
     seed: int = 0,
     workers: int = 2,
@@ -826,7 +868,7 @@ def build_dataset_from_streams(
     out_dir: str | os.PathLike,
     paths: Sequence[str | os.PathLike],
     windows_per_recording: int = 1000,
-    invalid_windows_per_recording: int = 200,
+    invalid_windows_per_recording: int = 400,
     seed: int = 0,
     workers: int = 2,
     progress: ProgressCallback | None = None,

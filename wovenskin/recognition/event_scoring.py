@@ -21,11 +21,17 @@ Definitions (``tolerance_s`` = 0.1 s by default):
 - False activations per minute: false activations (duplicates excluded: the right
   command issued again is no wrong robot motion) over the stream's length.
 - Median latency: the median over detected events (``None`` when none).
+- *Motion latency*: where the start of each event's characteristic motion is known
+  (simulated streams record it per event in ``metadata["events"][i]["phases"]
+  ["motion_start_s"]``; see :func:`motion_starts`), a detected event also records its
+  activation time minus its motion start.  It may be negative (a command issued before the
+  fingers begin to move, e.g. a push recognised from its landing).  The median over the
+  events with a known motion start is ``None`` when there are none.
 - ``invalid`` events are not detected or missed; ``invalid_acted`` counts those with any
   activation inside their window (all such activations are false activations).
 
 :func:`aggregate` pools several streams: counts and durations add up, latencies are pooled
-before taking the median (not a median of medians).
+before taking the median (not a median of medians); so do motion latencies.
 """
 
 from __future__ import annotations
@@ -69,6 +75,7 @@ class EventScores:
     n_invalid_acted: int = 0
     duration_s: float = 0.0
     latencies_s: list[float] = field(default_factory=list)
+    motion_latencies_s: list[float] = field(default_factory=list)
     per_class: dict[str, ClassCounts] = field(default_factory=dict)
     false_by_gesture: dict[str, int] = field(default_factory=dict)
     n_streams: int = 1
@@ -98,6 +105,12 @@ class EventScores:
     def median_latency_s(self) -> float | None:
         return float(np.median(self.latencies_s)) if self.latencies_s else None
 
+    @property
+    def median_motion_latency_s(self) -> float | None:
+        """Median activation time after the motion start (None: no motion start known)."""
+        latencies = self.motion_latencies_s
+        return float(np.median(latencies)) if latencies else None
+
     def to_dict(self) -> dict:
         return {
             "streams": self.n_streams,
@@ -115,6 +128,7 @@ class EventScores:
             "f1": self.f1,
             "false_activations_per_min": self.false_per_min,
             "median_latency_s": self.median_latency_s,
+            "median_motion_latency_s": self.median_motion_latency_s,
             "per_class_recall": {k: v.recall for k, v in sorted(self.per_class.items())},
             "per_class_events": {k: v.events for k, v in sorted(self.per_class.items())},
             "false_by_gesture": dict(sorted(self.false_by_gesture.items())),
@@ -140,6 +154,47 @@ def _events(
     return starts, ends, labels
 
 
+def _motion_starts(motion_start_s: Sequence[float | None] | None, n: int) -> np.ndarray:
+    """``(n,)`` motion starts with NaN where unknown (all NaN for ``None``)."""
+    if motion_start_s is None:
+        return np.full(n, np.nan)
+    values = [np.nan if v is None else v for v in motion_start_s]
+    out = np.asarray(values, dtype=np.float64).reshape(-1)
+    if len(out) != n:
+        raise ValueError(f"{len(out)} motion starts for {n} events")
+    if np.isinf(out).any():
+        raise ValueError("motion starts must be finite (NaN or None: unknown)")
+    return out
+
+
+def motion_starts(stream: LabelledStream) -> np.ndarray | None:
+    """Each event's motion start (s) from a stream's metadata, NaN where unknown.
+
+    Read from ``metadata["events"][i]["phases"]["motion_start_s"]`` as simulated streams
+    record it; ``None`` when the metadata holds no such per-event list, or one that does not
+    line up with the stream's events (another length, or another label at some position).
+    """
+    events = (stream.metadata or {}).get("events")
+    labels = [str(label) for label in np.asarray(stream.event_labels).reshape(-1)]
+    if not isinstance(events, list) or len(events) != len(labels):
+        return None
+    out = np.full(len(labels), np.nan)
+    for i, (event, label) in enumerate(zip(events, labels, strict=True)):
+        if not isinstance(event, dict):
+            return None
+        if "label" in event and str(event["label"]) != label:
+            return None
+        phases = event.get("phases")
+        value = phases.get("motion_start_s") if isinstance(phases, dict) else None
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            continue
+        if math.isfinite(value):
+            out[i] = value
+    return out if np.isfinite(out).any() else None
+
+
 def score_commands(
     commands: Iterable[CommandLike],
     event_start_s: Sequence[float],
@@ -147,13 +202,18 @@ def score_commands(
     event_labels: Sequence[str],
     duration_s: float,
     tolerance_s: float = DETECTION_TOLERANCE_S,
+    motion_start_s: Sequence[float | None] | None = None,
 ) -> EventScores:
-    """Score one stream's commands against its labelled events (see the module doc)."""
+    """Score one stream's commands against its labelled events (see the module doc).
+
+    ``motion_start_s`` (one per event, ``None``/NaN where unknown) adds motion latencies.
+    """
     if not (math.isfinite(duration_s) and duration_s >= 0):
         raise ValueError(f"stream duration must be a non-negative number, got {duration_s}")
     if not (math.isfinite(tolerance_s) and tolerance_s >= 0):
         raise ValueError(f"tolerance must be a non-negative number, got {tolerance_s}")
     starts, ends, labels = _events(event_start_s, event_end_s, event_labels)
+    motion = _motion_starts(motion_start_s, len(starts))
     activations = [(c.t, c.gesture) for c in changes_only(commands) if c.gesture is not None]
     scores = EventScores(duration_s=float(duration_s), n_activations=len(activations))
     matched = [False] * len(activations)
@@ -174,6 +234,8 @@ def score_commands(
                 counts.detected += 1
                 scores.n_detected += 1
                 scores.latencies_s.append(float(t - start))
+                if not np.isnan(motion[k]):
+                    scores.motion_latencies_s.append(float(t - motion[k]))
                 detected_windows.append((start, stop, label))
                 break
     for j, (t, gesture) in enumerate(activations):
@@ -192,7 +254,11 @@ def score_stream(
     stream: LabelledStream,
     tolerance_s: float = DETECTION_TOLERANCE_S,
 ) -> EventScores:
-    """Score commands against a :class:`LabelledStream`'s events; its length from its frames."""
+    """Score commands against a :class:`LabelledStream`'s events; its length from its frames.
+
+    Motion latencies are scored where the stream's metadata records the events' motion
+    starts (:func:`motion_starts`).
+    """
     duration = len(stream.t) / float(stream.sample_rate_hz)
     return score_commands(
         commands,
@@ -201,6 +267,7 @@ def score_stream(
         stream.event_labels,
         duration,
         tolerance_s,
+        motion_start_s=motion_starts(stream),
     )
 
 
@@ -218,6 +285,7 @@ def aggregate(scores: Iterable[EventScores]) -> EventScores:
         total.n_invalid_acted += s.n_invalid_acted
         total.duration_s += s.duration_s
         total.latencies_s.extend(s.latencies_s)
+        total.motion_latencies_s.extend(s.motion_latencies_s)
         for name, counts in s.per_class.items():
             pooled = total.per_class.setdefault(name, ClassCounts())
             pooled.events += counts.events
@@ -227,8 +295,7 @@ def aggregate(scores: Iterable[EventScores]) -> EventScores:
     return total
 
 
-def _latency_ms(scores: EventScores) -> str:
-    latency = scores.median_latency_s
+def _ms(latency: float | None) -> str:
     return "-" if latency is None else f"{1000 * latency:.0f}"
 
 
@@ -246,7 +313,9 @@ def scores_table(rows: Sequence[tuple[str, EventScores]], total: EventScores | N
         "FA/min",
         "dups",
         "latency ms",
-        title="event scores (FA: false activations; latency: median from first contact)",
+        "motion ms",
+        title="event scores (FA: false activations; latency: median from first contact; "
+        "motion: median from the start of the motion)",
     )
     shown = list(rows) + ([("total", total)] if total is not None else [])
     for name, s in shown:
@@ -259,7 +328,8 @@ def scores_table(rows: Sequence[tuple[str, EventScores]], total: EventScores | N
             f"{s.f1:.3f}",
             f"{s.false_per_min:.2f}",
             str(s.n_duplicates),
-            _latency_ms(s),
+            _ms(s.median_latency_s),
+            _ms(s.median_motion_latency_s),
             style="bold" if name == "total" and total is not None else None,
         )
     return table

@@ -19,12 +19,15 @@ list work; a model only accepts the grid and window it was built for.
 Input normalisation, shared by all models: windows are divided by ``input_scale``, a
 buffer (saved in the state dict and baked into the ONNX graph) that training sets to the
 typical window peak of its data (``set_input_scale``). With ``window_norm`` (default) each
-window is then divided by its own peak |value| (floored at :data:`PEAK_FLOOR`), and the
-log of that peak, the window's *level*, is given to the network as a separate input. The
+window is then divided by its own peak |value| (floored at :data:`PEAK_FLOOR`). The
 strength of a touch varies by two orders of magnitude across skins and people (fabric
 sensitivity, pressure, finger size) while its shape and motion carry the class, so the
-network sees the shape at a fixed scale and the strength as one number it can use or
-ignore (an idle window of noise has a low level).
+network sees the shape at a fixed scale. With ``level_input`` the log of the peak, the
+window's *level*, is also given to the network as one number; it is off by default:
+given the level, a network trained on a few skins learns strength as a cue (a stronger
+skin's one-finger swipe reads as two fingers), which GESTURES.md rules out. Without it
+a model's output is the same for a window and that window times any gain that keeps its
+peak above the floor (a property the tests check).
 
 :func:`build_model` creates a model from a registry name (``"transformer"``, ``"bilstm"``,
 ``"tcn"``) and hyperparameters; :func:`resolve_hparams` completes hyperparameters with the
@@ -61,7 +64,13 @@ class _InputNormalized(nn.Module):
     """Base of all models: the grid/window contract, input scale and window normalisation."""
 
     def __init__(
-        self, rows: int, cols: int, window: int, n_classes: int, window_norm: bool
+        self,
+        rows: int,
+        cols: int,
+        window: int,
+        n_classes: int,
+        window_norm: bool,
+        level_input: bool = False,
     ) -> None:
         super().__init__()
         _check_dims(rows, cols, window, n_classes)
@@ -70,6 +79,7 @@ class _InputNormalized(nn.Module):
         self.window = window
         self.n_classes = n_classes
         self.window_norm = window_norm
+        self.level_input = level_input
         self.register_buffer("input_scale", torch.ones(()))
 
     def set_input_scale(self, scale: float) -> None:
@@ -165,12 +175,13 @@ class ConvTransformer(_InputNormalized):
         dropout: float = 0.1,
         window_norm: bool = True,
         motion_channel: bool = True,
+        level_input: bool = False,
     ) -> None:
-        super().__init__(rows, cols, window, n_classes, window_norm)
+        super().__init__(rows, cols, window, n_classes, window_norm, level_input)
         if d_model % n_heads or d_model % 2:
             raise ValueError(f"d_model {d_model} must be even and divisible by n_heads {n_heads}")
         self.stem = FrameStem(rows, cols, stem_channels, d_model, motion_channel)
-        self.level = nn.Linear(1, d_model)
+        self.level = nn.Linear(1, d_model) if level_input else None
         self.register_buffer("positions", sinusoidal_encoding(window, d_model))
         layer = nn.TransformerEncoderLayer(
             d_model,
@@ -193,7 +204,9 @@ class ConvTransformer(_InputNormalized):
 
     def forward(self, windows: torch.Tensor) -> torch.Tensor:
         x, level = self._normalized(windows)
-        tokens = self.stem(x) + self.positions + self.level(level).unsqueeze(1)
+        tokens = self.stem(x) + self.positions
+        if self.level is not None:
+            tokens = tokens + self.level(level).unsqueeze(1)
         encoded = self.encoder(tokens)
         return self.head(encoded.mean(dim=1))
 
@@ -212,10 +225,11 @@ class BiLSTM(_InputNormalized):
         n_layers: int = 2,
         dropout: float = 0.1,
         window_norm: bool = True,
+        level_input: bool = False,
     ) -> None:
-        super().__init__(rows, cols, window, n_classes, window_norm)
+        super().__init__(rows, cols, window, n_classes, window_norm, level_input)
         self.lstm = nn.LSTM(
-            rows * cols + 1,
+            rows * cols + int(level_input),
             hidden,
             num_layers=n_layers,
             batch_first=True,
@@ -227,7 +241,9 @@ class BiLSTM(_InputNormalized):
 
     def forward(self, windows: torch.Tensor) -> torch.Tensor:
         x, level = self._normalized(windows)
-        steps = torch.cat([x.flatten(2), level.unsqueeze(1).expand(-1, self.window, 1)], dim=2)
+        steps = x.flatten(2)
+        if self.level_input:
+            steps = torch.cat([steps, level.unsqueeze(1).expand(-1, self.window, 1)], dim=2)
         outputs, _ = self.lstm(steps)
         return self.head(self.dropout(outputs.mean(dim=1)))
 
@@ -266,10 +282,11 @@ class TemporalConvNet(_InputNormalized):
         dropout: float = 0.1,
         window_norm: bool = True,
         motion_channel: bool = True,
+        level_input: bool = False,
     ) -> None:
-        super().__init__(rows, cols, window, n_classes, window_norm)
+        super().__init__(rows, cols, window, n_classes, window_norm, level_input)
         self.stem = FrameStem(rows, cols, stem_channels, dim, motion_channel)
-        self.level = nn.Linear(1, dim)
+        self.level = nn.Linear(1, dim) if level_input else None
         self.blocks = nn.Sequential(
             *(_CausalBlock(dim, kernel, 2**i, dropout) for i in range(n_blocks))
         )
@@ -279,7 +296,9 @@ class TemporalConvNet(_InputNormalized):
 
     def forward(self, windows: torch.Tensor) -> torch.Tensor:
         x, level = self._normalized(windows)
-        frames = self.stem(x) + self.level(level).unsqueeze(1)
+        frames = self.stem(x)
+        if self.level is not None:
+            frames = frames + self.level(level).unsqueeze(1)
         encoded = self.blocks(frames.transpose(1, 2))
         pooled = torch.cat([encoded[:, :, -1], encoded.mean(dim=2)], dim=1)
         return self.head(pooled)

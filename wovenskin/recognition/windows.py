@@ -82,18 +82,31 @@ SOURCE_NAMES: tuple[str, ...] = (
     "partial_overlay",
     "partial_onset",
     "capture",
+    "still",
 )
 """How a window was made, indexed by :attr:`WindowBatch.sources` (see the module doc).
 
-``capture`` marks a window cut from a labelled capture (:mod:`~.datasets`)."""
+``capture`` marks a window cut from a labelled capture (:mod:`~.datasets`); ``still`` a
+window of fingers resting before or after a gesture's motion (the ``stream`` recipe,
+:mod:`~.stream_windows`)."""
+
+RECIPES = ("stream", "overlay")
+"""Ways of drawing training windows (:attr:`WindowSettings.recipe`)."""
 
 SOURCE_CODES: dict[str, int] = {name: code for code, name in enumerate(SOURCE_NAMES)}
 
 
 @dataclass(frozen=True)
 class WindowSettings:
-    """How windows are cut and augmented (frames of the recording's rate; see module doc)."""
+    """How windows are cut and augmented (frames of the recording's rate; see module doc).
 
+    ``recipe`` picks how windows are drawn: ``"stream"`` (default) cuts plain windows at
+    every position of the stream and labels each by what it shows
+    (:mod:`~.stream_windows`, using ``min_motion_frames`` and ``motion_lag_frames``);
+    ``"overlay"`` is the paper's augmentation described in this module's doc.
+    """
+
+    recipe: str = "stream"
     window_frames: int = 30
     min_segment_frames: int = 10
     max_partial_frames: int = 8
@@ -101,9 +114,17 @@ class WindowSettings:
     invalid_overlay_fraction: float = 0.5
     rest_context_frames: int = 20
     quiet_margin_frames: int = 30
-    invalid_mix: tuple[float, float, float] = (0.4, 0.25, 0.35)  # events, idle, partial
+    invalid_mix: tuple[float, float, float] = (0.4, 0.25, 0.35)  # events, idle, partial/still
+    min_motion_frames: int = 6
+    motion_lag_frames: int = 6
 
     def __post_init__(self) -> None:
+        if self.recipe not in RECIPES:
+            raise ValueError(f"recipe must be one of {', '.join(RECIPES)}, got {self.recipe!r}")
+        for name, least in (("min_motion_frames", 1), ("motion_lag_frames", 0)):
+            value = getattr(self, name)
+            if not (isinstance(value, int | np.integer) and value >= least):
+                raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
         for name in ("window_frames", "min_segment_frames", "max_partial_frames"):
             value = getattr(self, name)
             if not (isinstance(value, int | np.integer) and value >= 1):
@@ -136,12 +157,18 @@ class WindowSettings:
 
     @classmethod
     def from_dict(cls, d: dict) -> WindowSettings:
-        """Build from a dict; missing keys take defaults, unknown keys are an error."""
+        """Build from a dict; missing keys take defaults, unknown keys are an error.
+
+        A non-empty dict without ``recipe`` describes a data set made before recipes
+        existed, which all used the paper's ``overlay`` recipe.
+        """
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:
             raise ValueError(f"unknown window setting(s): {', '.join(unknown)}")
         values = dict(d)
+        if values and "recipe" not in values:
+            values["recipe"] = "overlay"
         if "invalid_mix" in values:
             values["invalid_mix"] = tuple(values["invalid_mix"])
         return cls(**values)

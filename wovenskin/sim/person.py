@@ -70,7 +70,7 @@ class Person:
     pad_mm: float = 8.8  # fingertip patch width at a light touch (8-9.5 mm)
     pad_growth_mm: float = 3.0  # extra patch width at a firm press (2-4 mm)
     pad_aspect: float = 1.1  # patch length along the finger / width (1-1.2)
-    settle_s: float = 0.08  # pause between landing and the start of the motion
+    settle_s: float = 0.08  # pause between landing and the start of the motion (0-0.2 s)
     rest_probability: float = 0.6  # how often the fingers rest after the motion
     rest_mean_s: float = 0.5  # typical resting time when they do
     tremor_mm: float = 0.1  # physiological tremor sd (8-12 Hz)
@@ -122,7 +122,7 @@ class Person:
             pad_mm=u(8.0, 9.5),
             pad_growth_mm=u(2.0, 4.0),
             pad_aspect=u(1.0, 1.2),
-            settle_s=logu(0.02, 0.2),
+            settle_s=0.0 if rng.random() < 0.15 else logu(0.02, 0.2),
             rest_probability=u(0.2, 0.9),
             rest_mean_s=u(0.2, 1.0),
             tremor_mm=logu(0.03, 0.25),

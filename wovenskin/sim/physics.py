@@ -14,10 +14,11 @@ Signal chain of the channel at ``[r, c]``, frame ``n``:
    ``F``) with the Hertz-like profile ``p = p0 sqrt(1 - rho^2)``, ``p0 = 1.5 F / (pi a b)``,
    which integrates to ``F``.  Pressures of all contacts add.
 2. *Local response* ``1 - exp(-p / pressure_scale_kpa)`` (saturating toward ~100 kPa),
-   weighted by the in-channel sensitivity (lower near the channel border) and averaged over
-   ``S x S`` supersample points of the channel rectangle (``col_pitch x row_pitch``); the
-   default ``S = 8`` keeps the sampling ripple of a sliding fingertip's total signal under
-   2 % (4 x 4 points give ~6 %).
+   spread laterally by a Gaussian of sd ``field_spread_mm`` (fringe field and cover: on
+   some skins a fingertip reaches 3-4 channels), weighted by the in-channel sensitivity
+   (lower near the channel border) and averaged over ``S x S`` supersample points of the
+   channel rectangle (``col_pitch x row_pitch``); the default ``S = 8`` keeps the sampling
+   ripple of a sliding fingertip's total signal under 2 % (4 x 4 points give ~6 %).
 3. *Fabric mechanics:* a fast first-order lag plus a slow viscoelastic creep component.
 4. *Proximity:* a small fringe-field response around each contact, present slightly before
    landing and after lift-off (the hand hovering).
@@ -71,11 +72,13 @@ class SkinPhysics:
     )
     gain_pf: float = _param(
         4.0,
-        3.0,
-        8.0,
+        1.5,
+        60.0,
         "pF",
-        "change of a fully covered channel at saturating pressure: 10-80 % of c0, so a "
-        "1-2 N fingertip press changes a channel by several percent and a light one ~1 %",
+        "change of a fully covered channel at saturating pressure, 5 % to several times c0: "
+        "skins differ 10x and more (weave, cover, insulation, mounting), so a firm "
+        "fingertip press changes a channel by 1-2 % on a dull skin and 50 % or more on a "
+        "sensitive one",
         log=True,
     )
     channel_gain_spread: float = _param(
@@ -89,6 +92,14 @@ class SkinPhysics:
     )
     channel_edge_sensitivity: float = _param(
         0.75, 0.5, 1.0, "1", "sensitivity at a channel's border relative to its centre"
+    )
+    field_spread_mm: float = _param(
+        0.0,
+        0.0,
+        7.0,
+        "mm",
+        "sd of the lateral spread of a contact's effect (fringe field, a thick cover "
+        "spreading the pressure): 0 keeps a fingertip on 1-2 channels, 7 spreads it over 3-4",
     )
     pressure_scale_kpa: float = _param(
         30.0, 18.0, 45.0, "kPa", "local response is 1 - exp(-p / scale); ~100 kPa saturates"
@@ -356,6 +367,25 @@ every time scale, i.e. add noise at the frame rate.  It barely changes the rms c
 over a minute (``drift_*_per_min``) and makes the change over 0.1 s about 50x smaller."""
 
 
+def _spread_matrix(
+    channels: int, supersample: int, step_mm: float, sigma_mm: float, profile: np.ndarray
+) -> np.ndarray:
+    """``(channels, channels * supersample)``: Gaussian lateral spread of sd ``sigma_mm``
+    along one axis of the supersampled image (zero beyond the skin's edge), then the
+    channel's sensitivity ``profile`` and the mean over its ``supersample`` points.
+
+    The 2-D spread is separable, so channel values are ``R @ image @ C.T``; with
+    ``sigma_mm -> 0`` this tends to the plain weighted channel average."""
+    n = channels * supersample
+    offsets = np.arange(n)[:, None] - np.arange(n)[None, :]
+    sigma = sigma_mm / step_mm
+    reach = int(np.ceil(4 * sigma))
+    kernel_sum = np.exp(-0.5 * (np.arange(-reach, reach + 1) / sigma) ** 2).sum()
+    blur = np.exp(-0.5 * (offsets / sigma) ** 2) / kernel_sum  # (n, n): out point <- in point
+    average = np.kron(np.eye(channels), profile[None, :] / supersample)  # (channels, n)
+    return average @ blur
+
+
 def _ou_sigma(rms_change_per_min: float, tau_s: float) -> float:
     """Stationary sd of an Ornstein-Uhlenbeck process with the given rms change over 60 s."""
     return rms_change_per_min / math.sqrt(2.0 * (1.0 - math.exp(-60.0 / tau_s)))
@@ -416,6 +446,11 @@ class SkinModel:
         profile = edge + (1.0 - edge) * np.cos(np.pi * frac) ** 2
         weight = np.outer(profile, profile)
         self._sub_weight = weight / weight.mean()  # (s, s): full coverage -> mean 1
+        self._spread_rows = self._spread_cols = None
+        if phys.field_spread_mm > 0:
+            norm = profile / profile.mean()
+            self._spread_rows = _spread_matrix(lay.rows, s, self._dy, phys.field_spread_mm, norm)
+            self._spread_cols = _spread_matrix(lay.cols, s, self._dx, phys.field_spread_mm, norm)
         self._centers_x, self._centers_y = lay.channel_centers_mm()
 
         self.frames_rendered = 0
@@ -514,6 +549,10 @@ class SkinModel:
         pressure = image[:-1].reshape(frame_idx.size, py, px)
         s = self.supersample
         local = -np.expm1(-pressure / self.physics.pressure_scale_kpa)
+        if self._spread_rows is not None and self._spread_cols is not None:
+            # Spread, in-channel weighting and channel averaging in one separable product.
+            out[frame_idx] = self._spread_rows @ local @ self._spread_cols.T
+            return out
         local = local.reshape(frame_idx.size, rows, s, cols, s) * self._sub_weight[:, None, :]
         out[frame_idx] = local.mean(axis=(2, 4))
         return out
