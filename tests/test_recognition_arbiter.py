@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from wovenskin.recognition.arbiter import (
     DWELL,
+    ERRATIC,
     LIFT_OFF,
     NOTHING,
     PREEMPT,
@@ -212,7 +213,7 @@ def test_rules_hold_for_any_sequence(frames, dwell: int) -> None:
     touched = [f[0] for f in frames]
     performing = [f[1] for f in frames]
     labels = [f[2] for f in frames]
-    arbiter_settings = ArbiterSettings(dwell_s=dwell / RATE)
+    arbiter_settings = ArbiterSettings(dwell_s=dwell / RATE, max_switches=None)
     _, changes = run_sequence(labels, touched, performing, arbiter_settings)
     at = {round(c.t * RATE): c for c in changes}
     assert len(at) == len(changes)  # at most one change per frame
@@ -243,6 +244,31 @@ def test_rules_hold_for_any_sequence(frames, dwell: int) -> None:
             assert change.reason == PREEMPT
             assert all(performing[i - dwell : i + 1])  # performed through its whole dwell
         active = g
+
+
+def test_a_touch_that_keeps_switching_is_erratic_and_acts_no_more() -> None:
+    d = DWELL_FRAMES + 1
+    wandering = ["swipe_up"] * d + ["swipe_right"] * d + ["push"] * d + ["swipe_up"] * d
+    arbiter, changes = run_sequence(wandering)
+    assert [(c.gesture, c.reason) for c in changes] == [
+        ("swipe_up", DWELL),
+        ("swipe_right", PREEMPT),
+        (None, ERRATIC),  # the second switch: a hand wandering, not a gesture
+    ]
+    assert changes[2].t == (3 * d - 1) / RATE and arbiter.suppressed
+    # Nothing acts until every finger lifts; then a new touch starts fresh.
+    lifted = wandering + [None] * 3 + ["push"] * d
+    touched = [True] * len(wandering) + [False] * 3 + [True] * d
+    arbiter, changes = run_sequence(lifted, touched)
+    assert [c.reason for c in changes] == [DWELL, PREEMPT, ERRATIC, DWELL]
+    assert changes[-1].gesture == "push" and not arbiter.suppressed
+    # max_switches=None allows any number; 0 ends the command at the first switch.
+    _, free = run_sequence(wandering, arbiter_settings=ArbiterSettings(max_switches=None))
+    assert [c.reason for c in free] == [DWELL, PREEMPT, PREEMPT, PREEMPT]
+    _, strict = run_sequence(wandering, arbiter_settings=ArbiterSettings(max_switches=0))
+    assert [c.reason for c in strict] == [DWELL, ERRATIC]
+    with pytest.raises(ValueError, match="max_switches"):
+        ArbiterSettings(max_switches=-1)
 
 
 # ------------------------------------------------------------------- being performed

@@ -21,6 +21,8 @@ from wovenskin.recognition.captures import (
     leave_one_participant_out,
     prepare_capture,
     prepare_captures,
+    resample_frames,
+    score_captures,
     train_on_captures,
     window_ending,
 )
@@ -146,6 +148,52 @@ def test_capture_window_array_is_random_per_read_and_deterministic():
     assert not np.array_equal(other_seed[np.array([0, 1, 2])], first)
 
 
+def _views_of(window: np.ndarray) -> list[np.ndarray]:
+    return [np.ascontiguousarray(v[0]) for v in grid_symmetries(window[None], transpose=True)]
+
+
+def test_training_windows_are_drawn_under_all_eight_grid_symmetries():
+    x = np.random.default_rng(2).normal(size=(12, 3, 3)).astype(np.float32)
+    arr = CaptureWindowArray({0: x}, 12, np.zeros(400, dtype=np.int64), [], seed=1)
+    views = _views_of(x)
+    drawn = arr[np.arange(400)]
+    seen = {next(k for k, v in enumerate(views) if np.array_equal(v, w)) for w in drawn}
+    assert seen == set(range(8))  # every window is one view of the capture, and all occur
+
+
+def test_resample_frames_interpolates_over_the_same_span():
+    x = np.arange(5, dtype=np.float32).reshape(5, 1, 1) * 2.0
+    assert np.allclose(resample_frames(x, 9).ravel(), np.arange(9))
+    assert np.allclose(resample_frames(x, 3).ravel(), [0, 4, 8])
+    assert resample_frames(np.ones((4, 2, 3), np.float32), 7).shape == (7, 2, 3)
+
+
+def test_window_augmentation_gain_noise_and_time_stretch():
+    t = np.arange(200, dtype=np.float32)
+    x = np.broadcast_to(t[:, None, None], (200, 2, 2)).copy() + 1.0  # a ramp: rate is visible
+    n = 300
+    plain = CaptureWindowArray({0: x}, 20, np.zeros(n), [], symmetries=False, gain=1.5)
+    gains = []
+    for w in plain[np.arange(n)]:  # a gain only: a slice of the ramp times one factor
+        steps = np.diff(w[:, 0, 0])
+        assert np.allclose(steps, steps[0], rtol=1e-4)
+        start = round(float(w[0, 0, 0] / steps[0]))
+        assert np.allclose(w[:, 0, 0] / steps[0], np.arange(start, start + 20), atol=1e-2)
+        assert 1 / 1.5 - 1e-5 <= steps[0] <= 1.5 + 1e-5
+        gains.append(steps[0])
+    gains = np.array(gains)
+    assert gains.min() < 0.8 and gains.max() > 1.25  # spread log-uniformly over [1/1.5, 1.5]
+    stretched = CaptureWindowArray({0: x}, 20, np.zeros(n), [], symmetries=False, time_stretch=1.3)
+    rates = np.diff(stretched[np.arange(n)][:, :, 0, 0], axis=1).mean(axis=1)
+    assert rates.min() >= (19 * 1 / 1.3 - 1) / 19 and rates.max() <= (19 * 1.3 + 1) / 19
+    assert rates.min() < 0.85 and rates.max() > 1.15  # slower and faster playback both drawn
+    noisy = CaptureWindowArray({0: x}, 20, np.zeros(n), [], symmetries=False, noise=0.1)
+    residual = np.concatenate([np.diff(w[:, 0, 0]) - 1 for w in noisy[np.arange(n)]])
+    assert 0.1 < residual.std() < 0.2  # the difference of two N(0, 0.1^2) draws: 0.14
+    fixed = CaptureWindowArray({0: x}, 20, [0], [(0, 199)], gain=2.0, noise=1.0, time_stretch=2)
+    assert np.array_equal(fixed[1], x[180:])  # validation windows are never augmented
+
+
 def test_internal_validation_holds_out_one_capture_per_person_and_class():
     c = synthetic_captures(0)
     everything = np.arange(len(c.labels))
@@ -231,6 +279,54 @@ def test_evaluate_scores_new_captures_one_label_each(trained, tmp_path):
     json.dumps(d)  # JSON-ready
 
 
+def _transformed(c: LabelledCaptures, transform) -> LabelledCaptures:
+    return replace(c, frames=np.ascontiguousarray(transform(c.frames)))
+
+
+@pytest.mark.parametrize(
+    "transform",
+    [
+        lambda f: np.rot90(f, 1, axes=(2, 3)),  # the sensor mounted a quarter turn round
+        lambda f: np.rot90(f, 2, axes=(2, 3)),
+        lambda f: f[:, :, ::-1],  # mounted upside down (rows mirrored)
+        lambda f: f.transpose(0, 1, 3, 2),
+    ],
+    ids=["rot90", "rot180", "flip", "transpose"],
+)
+def test_capture_scores_do_not_change_when_the_sensor_is_rotated_or_flipped(
+    trained, tmp_path, transform
+):
+    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+
+    _, model_dir, _, _ = trained
+    c = synthetic_captures(seed=7, people=("q1",))
+    recognizer = OnnxRecognizer(model_dir)
+    plain = score_captures(recognizer, c)
+    moved = score_captures(recognizer, _transformed(c, transform))
+    assert plain.views == moved.views == 8
+    assert np.allclose(plain.log_probs, moved.log_probs, atol=1e-4)
+    assert np.array_equal(plain.predictions, moved.predictions)
+    assert plain.capture_accuracy >= 0.9
+
+
+def test_symmetric_training_makes_single_views_nearly_agree(trained):
+    """Each view on its own already gives (nearly) the same class: training drew them all."""
+    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+
+    _, model_dir, _, _ = trained
+    c = synthetic_captures(seed=7, people=("q1",))
+    recognizer = OnnxRecognizer(model_dir)
+    stored = read_meta(model_dir).conditioning["capture_normalisation"]
+    prepared = prepare_captures(c, CaptureNormalisation.from_dict(stored), TINY.frame_step)
+    batch = np.stack([window_ending(x, len(x) - 1, TINY.window_frames) for x in prepared.values()])
+    per_view = np.stack(
+        [recognizer.predict_proba(np.ascontiguousarray(v)) for v in grid_symmetries(batch, True)]
+    )
+    agreement = (per_view.argmax(axis=2) == per_view[0].argmax(axis=1)).mean()
+    assert agreement >= 0.9
+    assert np.abs(per_view - per_view.mean(axis=0)).max() < 0.5
+
+
 def test_evaluating_training_captures_is_flagged(trained):
     path, model_dir, result, events = trained
     d = evaluate_captures(path, model_dir).to_dict()
@@ -306,6 +402,14 @@ def test_recipe_rejects_bad_settings():
         CaptureRecipe(window_frames=0)
     with pytest.raises(ValueError, match="lr must be positive"):
         CaptureRecipe(lr=0.0)
+    with pytest.raises(ValueError, match="time_stretch must be a factor >= 1"):
+        CaptureRecipe(time_stretch=0.9)
+    with pytest.raises(ValueError, match="gain must be a factor >= 1"):
+        CaptureRecipe(gain=float("nan"))
+    with pytest.raises(ValueError, match="noise must not be negative"):
+        CaptureRecipe(noise=-0.1)
+    with pytest.raises(ValueError, match="label_smoothing"):
+        CaptureRecipe(label_smoothing=1.0)
     assert CaptureRecipe().resolved_hparams()["dim"] == 32
     assert CaptureRecipe(model="bilstm").resolved_hparams() == {}
 

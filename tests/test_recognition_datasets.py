@@ -248,7 +248,8 @@ def test_build_from_streams_and_recordings(tmp_path, stream_files):
     motion_end = _motion_end_s(read_labelled_stream(root / "a.npz"))
     is_gesture = a.event_labels != INVALID
     assert np.all(np.isfinite(motion_end[is_gesture])) and np.all(np.isnan(motion_end[~is_gesture]))
-    assert np.all(motion_end[is_gesture] <= a.event_end_s[is_gesture])
+    # (a flick lifts off while still moving: its motion may end a few frames after lift-off)
+    assert np.all(motion_end[is_gesture] <= a.event_end_s[is_gesture] + 0.05)
     assert ds.recordings[0]["dropped_events"] == []
     named = build_dataset_from_streams(
         tmp_path / "named", paths, windows_per_recording=14, invalid_windows_per_recording=0,

@@ -134,7 +134,9 @@ def test_each_touch_gives_one_command_after_the_dwell_until_lift_off() -> None:
     for start, end, begin, finish in zip(
         starts, ends, stream.event_start_s, stream.event_end_s, strict=True
     ):
-        assert begin + 0.1 <= start.t <= begin + 0.3  # contact seen, then the dwell
+        # contact seen, then the dwell; a sensitive skin senses the approaching hand's
+        # fringe field up to ~50 ms before the labelled landing
+        assert begin + 0.05 <= start.t <= begin + 0.3
         assert start.t < end.t <= finish + 0.1  # lift-off ends it within the debounce
     scores = score_stream(commands, stream)
     assert (scores.recall, scores.precision, scores.n_false) == (1.0, 1.0, 0)

@@ -1,4 +1,4 @@
-"""The gesture vocabulary of ``../shared/GESTURES.md``: names are the stable identifiers.
+"""The gesture vocabulary of ``docs/gestures.md``: names are the stable identifiers.
 
 Files, checkpoints and command logs carry these names, never bare class indices.
 """

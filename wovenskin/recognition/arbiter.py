@@ -33,12 +33,18 @@ Rules (GESTURES.md, "Execution rules" and the resting paragraph before them):
 - Lift-off (``touched`` false) ends the active command at once, on that very frame
   (reason ``"lift-off"``), and forgets the candidate: a new touch starts fresh.  While
   nothing touches the skin no prediction counts.
+- Context no window has: a touch whose command would switch more than ``max_switches``
+  times (default 1) is not a gesture but a hand wandering over the skin (a scribble, a
+  hand sliding about): instead of the next switch the command ends (reason
+  ``"erratic"``) and nothing acts until every finger has lifted.  People do correct a
+  wrongly recognised first command by going on with the gesture (one switch), but do not
+  chain three different commands in one touch.  ``None`` allows any number.
 
 "Being performed" (:class:`PerformingDetector`): over the *touch region* -- the active
-channels and their 8 neighbours, so channels flickering at their contact threshold do
-not jump the measures -- each frame gets the total signal ``S`` (sum of the positive
-conditioned signal), its centroid (mm) and its spread (rms distance of the signal from
-the centroid, mm).  Frame ``i`` is compared with frame ``i - L`` (``L = round(span_s *
+channels and their 8 neighbours -- each frame gets the total signal ``S`` (of the
+signal above 15 % of the frame's peak: a soft floor, so channels flickering at their
+contact threshold do not jump the measures), its centroid (mm) and its spread (rms
+distance of the signal from the centroid, mm).  Frame ``i`` is compared with frame ``i - L`` (``L = round(span_s *
 rate)``, 0.1 s): the fingers are being performed when the touch region is not empty in
 either and
 
@@ -73,6 +79,7 @@ from wovenskin.skin.layout import DEFAULT_COL_PITCH_MM, DEFAULT_ROW_PITCH_MM
 DWELL = "dwell"
 PREEMPT = "preempt"
 LIFT_OFF = "lift-off"
+ERRATIC = "erratic"
 REASONS: tuple[str, ...] = (DWELL, PREEMPT, LIFT_OFF)
 """Why the active command changed, as :attr:`CommandChange.reason`."""
 
@@ -103,9 +110,13 @@ class ArbiterSettings:
 
     dwell_s: float = 0.1
     min_probability: float = 0.0
+    max_switches: int | None = 1
 
     def __post_init__(self) -> None:
         _check_positive("dwell_s", self.dwell_s)
+        m = self.max_switches
+        if m is not None and not (isinstance(m, int) and not isinstance(m, bool) and m >= 0):
+            raise ValueError(f"max_switches must be None or an integer >= 0, got {m!r}")
         p = self.min_probability
         if not (isinstance(p, int | float) and 0.0 <= p <= 1.0):
             raise ValueError(f"min_probability must lie in [0, 1], got {p!r}")
@@ -148,6 +159,11 @@ _REGION_STRUCTURE = np.zeros((3, 3, 3), dtype=bool)
 _REGION_STRUCTURE[1] = True  # 8 neighbours within a frame, never across frames
 
 
+RELATIVE_FLOOR = 0.15
+"""Share of a frame's peak below which a channel does not count toward the touch's
+centroid, spread and total (see :func:`touch_features`)."""
+
+
 def touch_features(
     signal: np.ndarray,
     active: np.ndarray,
@@ -156,13 +172,19 @@ def touch_features(
 ) -> np.ndarray:
     """``(N, 4)`` float64 per frame: total signal, centroid row and col (mm), spread (mm).
 
-    Computed over the touch region (active channels and their 8 neighbours, positive
-    signal only); a frame without active channels has total 0 and centroid/spread 0.
-    Each frame's values depend on that frame alone.
+    Each channel weighs by how far its signal rises above :data:`RELATIVE_FLOOR` times
+    the frame's peak, within the touch region (active channels and their 8 neighbours).
+    The soft floor makes the measures continuous in the signal: on a dull, noisy skin
+    the fingertips of a resting hand flicker across the contact threshold, and counting
+    a channel fully or not at all made their centroid jump by tens of mm/s.  A frame
+    without active channels has total 0 and centroid/spread 0.  Each frame's values
+    depend on that frame alone.
     """
     n, rows, cols = signal.shape
     region = ndimage.binary_dilation(active, structure=_REGION_STRUCTURE)
-    weights = np.where(region, np.maximum(signal, 0.0), 0.0).astype(np.float64)
+    inside = np.where(region, np.maximum(signal, 0.0), 0.0).astype(np.float64)
+    peak = inside.reshape(n, -1).max(axis=1)[:, None, None]
+    weights = np.maximum(inside - RELATIVE_FLOOR * peak, 0.0)
     weights = weights.reshape(n, rows * cols)
     row_mm = np.repeat(np.arange(rows, dtype=np.float64) * row_pitch_mm, cols)
     col_mm = np.tile(np.arange(cols, dtype=np.float64) * col_pitch_mm, rows)
@@ -240,6 +262,13 @@ class Arbiter:
         self._candidate = NOTHING
         self._candidate_since = 0
         self._performing_since: int | None = None
+        self._switches = 0
+        self._suppressed = False
+
+    @property
+    def suppressed(self) -> bool:
+        """True while the current touch has been judged erratic (until lift-off)."""
+        return self._suppressed
 
     @property
     def active(self) -> str | None:
@@ -329,6 +358,8 @@ class Arbiter:
         if not touched:
             self._candidate = NOTHING
             self._performing_since = None
+            self._switches = 0
+            self._suppressed = False
             if self._active != NOTHING:
                 self._active = NOTHING
                 return CommandChange(t, None, LIFT_OFF)
@@ -337,7 +368,7 @@ class Arbiter:
             self._performing_since = None
         elif self._performing_since is None:
             self._performing_since = i
-        if recognised is None:
+        if recognised is None or self._suppressed:
             return None
         if recognised != self._candidate:
             self._candidate = recognised
@@ -352,6 +383,13 @@ class Arbiter:
         if self._performing_since is None:
             return None
         if i - max(self._candidate_since, self._performing_since) >= self.dwell_frames:
+            limit = self.settings.max_switches
+            if limit is not None and self._switches >= limit:
+                self._active = NOTHING
+                self._candidate = NOTHING
+                self._suppressed = True
+                return CommandChange(t, None, ERRATIC)
+            self._switches += 1
             self._active = self._candidate
             return CommandChange(t, self.class_names[self._active], PREEMPT)
         return None

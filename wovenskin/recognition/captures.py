@@ -576,6 +576,7 @@ class CaptureEvaluation:
     seen_in_training: int  # scored captures identical to a training capture of the model
     seconds: float
     views: int  # grid symmetries averaged per window
+    log_probs: np.ndarray | None = None  # (n, K) mean log-probability of every capture
 
     @property
     def capture_accuracy(self) -> float:
@@ -680,7 +681,7 @@ def score_captures(
     ids = np.arange(len(captures.labels)) if indices is None else np.asarray(indices, np.int64)
     if ids.size == 0:
         raise ValueError("no captures to score")
-    capture_pred = np.empty(ids.size, dtype=np.int64)
+    capture_log_p = np.empty((ids.size, meta.n_classes))
     window_true: list[np.ndarray] = []
     window_pred: list[np.ndarray] = []
     views = 1
@@ -706,8 +707,9 @@ def score_captures(
         owner = np.repeat(np.arange(chunk.size), counts)
         sums = np.zeros((chunk.size, meta.n_classes))
         np.add.at(sums, owner, log_p)
-        capture_pred[start : start + chunk.size] = sums.argmax(axis=1)
+        capture_log_p[start : start + chunk.size] = sums / (counts[:, None] * views)
         window_true.append(np.repeat(captures.labels[chunk], counts))
+    capture_pred = capture_log_p.argmax(axis=1)
     labels = captures.labels[ids].astype(np.int64)
     seen = 0
     if spec.train_digests:
@@ -731,6 +733,7 @@ def score_captures(
         seen_in_training=int(seen),
         seconds=time.perf_counter() - started,
         views=views,
+        log_probs=capture_log_p,
     )
 
 

@@ -668,6 +668,10 @@ def write_history(
     ax_acc.set_xlabel("epoch")
     ax_acc.set_ylabel("window accuracy")
     ax_acc.legend()
+    from matplotlib.ticker import MaxNLocator
+
+    for axis in (ax_loss, ax_acc):
+        axis.xaxis.set_major_locator(MaxNLocator(integer=True))
     fig.suptitle(f"{title}: learning curve")
     fig.tight_layout()
     import io

@@ -1,7 +1,7 @@
 """How a simulated person produces touches that must be classified ``invalid``.
 
 Owns :data:`INVALID_KINDS` and :func:`perform_invalid`.  The kinds follow the ``invalid``
-row of ``../shared/GESTURES.md``:
+row of ``docs/gestures.md``:
 
 - ``short_tap``: one or two fingertips, single or double tap, each contact shorter than
   the 0.1 s dwell time;

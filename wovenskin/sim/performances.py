@@ -1,7 +1,7 @@
 """How a simulated person performs each gesture: fingertip tracks for the 14 gestures.
 
 Owns :func:`perform` (any class name, ``invalid`` included) and the performers of the 14
-valid gestures of ``../shared/GESTURES.md``; the invalid touches live in
+valid gestures of ``docs/gestures.md``; the invalid touches live in
 :mod:`wovenskin.sim.invalid`.  Every quantitative range comes from
 :mod:`wovenskin.sim.spec`, and every trial parameter is drawn around the person's habits by
 :class:`~wovenskin.sim.person.Trial`, so two people (and two trials of one person) differ in

@@ -2,7 +2,7 @@
 
 Owns :class:`Person` (a set of traits, drawn by :meth:`Person.sample`) and :class:`Trial`,
 which draws the parameters of one performance around the person's habits (trial-to-trial
-variation) while keeping them inside the ranges of ``../shared/GESTURES.md``.
+variation) while keeping them inside the ranges of ``docs/gestures.md``.
 
 Tempo and size are *quantiles*: ``pace = 0.8`` means this person's swipes, circles and
 pinches run at 80 % of the way through the allowed speed ranges, so a fast person is fast at

@@ -1,4 +1,4 @@
-"""The quantitative ranges of ``../shared/GESTURES.md`` as named constants.
+"""The quantitative ranges of ``docs/gestures.md`` as named constants.
 
 Every performer in :mod:`wovenskin.sim.performances` draws its trial parameters inside
 these ranges, and the simulator's tests check the rendered tracks against the same

@@ -1,7 +1,7 @@
 """Skin geometry and the only conversions between device channel order and frames.
 
 A *frame* everywhere in wovenskin is an array indexed ``[row, col]`` as the user faces
-the skin (``../shared/GESTURES.md``): row 0 is the top edge and rows grow downward,
+the skin (``docs/gestures.md``): row 0 is the top edge and rows grow downward,
 column 0 is the left edge and columns grow to the right.  Physical positions are in
 millimetres with ``x`` to the right and ``y`` downward from the top-left corner of the
 sensing area, so "up" is ``-y``.
