@@ -112,6 +112,38 @@ def test_compare_models_side_by_side(data, tmp_path):
     assert "grouped" in text and "random" in text and "bilstm" in text
 
 
+def test_compare_scores_each_model_on_whole_streams(data, tmp_path):
+    from wovenskin.recognition.event_scoring import score_stream
+    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+    from wovenskin.recognition.pipeline import (
+        PipelineSettings,
+        arbiter_settings_for_model,
+        run_pipeline,
+    )
+    from wovenskin.sim.stream import simulate_stream
+
+    stream = simulate_stream(8.0, seed=41)
+    comparison = compare_models(
+        data, tmp_path / "cmp", ["tcn"], ["grouped"], OPTIONS, {"tcn": TINY_HPARAMS["tcn"]},
+        latency_repeats=3, streams=[stream],
+    )  # fmt: skip
+    assert comparison.recipe == "stream"  # the data set's own recipe, reported beside it
+    row = comparison.rows[0]
+    assert row.stream is not None and row.stream.n_streams == 1
+    assert row.stream.n_events == int((stream.event_labels != "invalid").sum())
+    # the figures are the live pipeline's on that stream, scored as eval-stream scores it
+    recognizer = OnnxRecognizer(tmp_path / "cmp" / "grouped" / "tcn")
+    settings = PipelineSettings(arbiter=arbiter_settings_for_model(recognizer))
+    expected = score_stream(run_pipeline(stream, recognizer, settings).commands, stream)
+    assert (row.stream.f1, row.stream.false_per_min) == (expected.f1, expected.false_per_min)
+    document = json.loads((tmp_path / "cmp" / COMPARE_FILE).read_text())
+    assert document["recipe"] == "stream" and document["models"]["tcn"]["streams"]["n_streams"] == 1
+    console = Console(record=True, width=200)
+    console.print(comparison.table())
+    text = console.export_text()
+    assert "event F1" in text and "stream recipe" in text
+
+
 def test_compare_models_refuses_bad_requests(data, tmp_path):
     with pytest.raises(ValueError, match="unknown model"):
         compare_models(data, tmp_path, ["transformer", "gru"], options=OPTIONS)

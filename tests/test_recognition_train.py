@@ -22,6 +22,8 @@ from wovenskin.recognition.checkpoint import (
 from wovenskin.recognition.models import build_model
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.recognition.train import (
+    CURVE_FILE,
+    HISTORY_FILE,
     STATE_FILE,
     ClassificationMetrics,
     TrainEvent,
@@ -30,6 +32,7 @@ from wovenskin.recognition.train import (
     evaluate,
     fit_input_scale,
     train_model,
+    write_history,
 )
 
 CLASSES = ("slide_right", "slide_down", "press")
@@ -157,7 +160,16 @@ def test_transformer_learns_moving_blobs_and_exports(tmp_path: Path, data) -> No
     assert result.best_val_accuracy >= 0.95, [r.val_accuracy for r in result.history]
     assert result.stop_reason in ("completed", "early_stopping")
     assert result.validation.accuracy == result.best_val_accuracy
-    assert {p.name for p in tmp_path.iterdir()} == {META_FILE, WEIGHTS_FILE, ONNX_FILE, STATE_FILE}
+    assert {p.name for p in tmp_path.iterdir()} == {
+        META_FILE, WEIGHTS_FILE, ONNX_FILE, STATE_FILE, HISTORY_FILE, CURVE_FILE
+    }  # fmt: skip
+    # every run keeps its history and learning curve beside the weights
+    history = json.loads((tmp_path / HISTORY_FILE).read_text())
+    assert [e["epoch"] for e in history["epochs"]] == [r.epoch for r in result.history]
+    assert history["epochs"][-1]["val_accuracy"] == result.history[-1].val_accuracy
+    assert (tmp_path / CURVE_FILE).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    write_history(tmp_path, result.history, "transformer", extra={"stream_f1": 0.5})
+    assert json.loads((tmp_path / HISTORY_FILE).read_text())["extra"] == {"stream_f1": 0.5}
 
     epoch_events = [e for e in events if e.kind == "epoch"]
     assert [e.epoch for e in epoch_events] == [r.epoch for r in result.history]

@@ -44,9 +44,9 @@ Rules (GESTURES.md, "Execution rules" and the resting paragraph before them):
 channels and their 8 neighbours -- each frame gets the total signal ``S`` (of the
 signal above 15 % of the frame's peak: a soft floor, so channels flickering at their
 contact threshold do not jump the measures), its centroid (mm) and its spread (rms
-distance of the signal from the centroid, mm).  Frame ``i`` is compared with frame ``i - L`` (``L = round(span_s *
-rate)``, 0.1 s): the fingers are being performed when the touch region is not empty in
-either and
+distance of the signal from the centroid, mm).  Frame ``i`` is compared with frame
+``i - L`` (``L = round(span_s * rate)``, 0.1 s): the fingers are being performed when
+the touch region is not empty in either and
 
 - the centroid moved faster than ``min_speed_mm_s`` (a swipe, a circle), or
 - the spread changed faster than ``min_spread_rate_mm_s`` (a pinch: the centroid of two

@@ -72,13 +72,13 @@ class SkinPhysics:
     )
     gain_pf: float = _param(
         4.0,
-        1.5,
+        0.4,
         60.0,
         "pF",
-        "change of a fully covered channel at saturating pressure, 5 % to several times c0: "
-        "skins differ 10x and more (weave, cover, insulation, mounting), so a firm "
-        "fingertip press changes a channel by 1-2 % on a dull skin and 50 % or more on a "
-        "sensitive one",
+        "change of a fully covered channel at saturating pressure, 1 % to several times c0: "
+        "skins differ 10x and more (weave, cover, insulation, mounting): a firm (1.5 N) "
+        "fingertip press changes a channel by 6 % on the default skin, by under 1 % on the "
+        "dullest and by 100 % and more on the most sensitive",
         log=True,
     )
     channel_gain_spread: float = _param(
