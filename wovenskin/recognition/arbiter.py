@@ -21,7 +21,11 @@ Rules (GESTURES.md, "Execution rules" and the resting paragraph before them):
   has been recognised at the start and at the end of a whole dwell time, and at every
   prediction in between.  Decisions are taken on prediction frames only.
 - Nothing active: a candidate whose dwell is satisfied becomes the command (reason
-  ``"dwell"``).
+  ``"dwell"``), provided the fingers were being performed at some frame in the last
+  ``start_within_s`` (0.2 s; ``None``: no such condition).  Fingers that have rested
+  still for longer -- a hand left on the skin, the rest after a gesture whose command
+  was missed -- start nothing, whatever the windows say; the grace covers the moving
+  average's lag behind the end of a fast motion.
 - A command active: a *different* candidate preempts it (reason ``"preempt"``) only when
   its dwell is satisfied counting only frames in which the fingers were being performed
   without a break, i.e. ``i - max(candidate_since, performing_since) >= dwell_frames``
@@ -111,9 +115,13 @@ class ArbiterSettings:
     dwell_s: float = 0.1
     min_probability: float = 0.0
     max_switches: int | None = 1
+    start_within_s: float | None = 0.2
 
     def __post_init__(self) -> None:
         _check_positive("dwell_s", self.dwell_s)
+        w = self.start_within_s
+        if w is not None and not (isinstance(w, int | float) and math.isfinite(w) and w >= 0):
+            raise ValueError(f"start_within_s must be None or a number >= 0, got {w!r}")
         m = self.max_switches
         if m is not None and not (isinstance(m, int) and not isinstance(m, bool) and m >= 0):
             raise ValueError(f"max_switches must be None or an integer >= 0, got {m!r}")
@@ -264,6 +272,12 @@ class Arbiter:
         self._performing_since: int | None = None
         self._switches = 0
         self._suppressed = False
+        self._last_performing: int | None = None
+        self._start_frames = (
+            None
+            if self.settings.start_within_s is None
+            else int(round(self.settings.start_within_s * self.sample_rate_hz))
+        )
 
     @property
     def suppressed(self) -> bool:
@@ -360,14 +374,17 @@ class Arbiter:
             self._performing_since = None
             self._switches = 0
             self._suppressed = False
+            self._last_performing = None
             if self._active != NOTHING:
                 self._active = NOTHING
                 return CommandChange(t, None, LIFT_OFF)
             return None
         if not performing:
             self._performing_since = None
-        elif self._performing_since is None:
-            self._performing_since = i
+        else:
+            self._last_performing = i
+            if self._performing_since is None:
+                self._performing_since = i
         if recognised is None or self._suppressed:
             return None
         if recognised != self._candidate:
@@ -376,6 +393,10 @@ class Arbiter:
         if self._candidate == NOTHING or self._candidate == self._active:
             return None
         if self._active == NOTHING:
+            if self._start_frames is not None and (
+                self._last_performing is None or i - self._last_performing > self._start_frames
+            ):
+                return None
             if i - self._candidate_since >= self.dwell_frames:
                 self._active = self._candidate
                 return CommandChange(t, self.class_names[self._active], DWELL)
