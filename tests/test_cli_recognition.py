@@ -193,7 +193,7 @@ def test_train_on_captures(fake_captures, tmp_path):
     path, out, kwargs = fake_captures["train"]
     assert (path, out) == (tmp_path / "h.npz", tmp_path / "m")
     assert kwargs["model"] is None and kwargs["epochs"] is None and kwargs["seed"] == 4
-    assert kwargs["threads"] == 2 and kwargs["resume"] is False and callable(kwargs["progress"])
+    assert kwargs["threads"] == 1 and kwargs["resume"] is False and callable(kwargs["progress"])
     assert "validation window accuracy 75.00 %" in result.stdout
 
 

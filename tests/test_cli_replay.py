@@ -128,7 +128,10 @@ def test_eval_stream_json_and_table(model_dir, streams) -> None:
     assert total["events"] == sum(s["events"] for s in document["streams"])
     for key in ("precision", "recall", "f1", "false_activations_per_min", "median_latency_s"):
         assert key in total
-    assert document["settings"] == {"every": 1, "dwell_s": 0.1, "min_probability": 0.0}
+    assert document["settings"] == {
+        "every": 1, "dwell_s": 0.1, "min_probability": 0.0, "max_switches": 1,
+        "start_within_s": 0.2,
+    }  # fmt: skip
     table = runner.invoke(app, ["eval-stream", str(streams[0]), "--model", str(model_dir)])
     assert table.exit_code == 0
     assert "event scores" in table.stdout and "per class" in table.stdout

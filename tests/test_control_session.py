@@ -106,7 +106,9 @@ def test_lift_off_stops_the_arm_within_the_deceleration(swipe_up_run) -> None:
     checked = 0
     for _, end in spans(records):
         lift = t[min(end, len(t) - 1)]
-        after = (t >= lift + 0.4) & (t < lift + 0.6)
+        later = stream.event_start_s[stream.event_start_s > lift]
+        next_touch = later[0] - 0.05 if later.size else np.inf  # (a sensitive skin feels the
+        after = (t >= lift + 0.4) & (t < min(lift + 0.6, next_touch))  # hand coming earlier)
         if not after.any():  # the stream ends sooner
             continue
         checked += 1
@@ -259,13 +261,18 @@ def test_a_hold_to_run_pose_move_stops_at_lift_off(tmp_path) -> None:
     assert result.errors == 0
     q = np.array([r["q"] for r in records])
     t = np.array([r["t"] for r in records])
-    for start, end in spans(records):
-        toward = np.linalg.norm(q[start] - goal) - np.linalg.norm(q[end - 1] - goal)
-        assert toward > 0.01  # moved toward the stored pose while the fingers were on
-        settled = (t > t[end - 1] + 0.3) & (t < t[end - 1] + 0.5)
+    for k, (start, end) in enumerate(spans(records)):
+        remaining = np.linalg.norm(q[start] - goal)
+        toward = remaining - np.linalg.norm(q[end - 1] - goal)
+        assert toward > 0.01 or remaining < 1e-3  # moved toward the pose while touched
+        lift = t[end - 1]
+        later = stream.event_start_s[stream.event_start_s > lift]
+        next_touch = later[0] - 0.05 if later.size else np.inf  # the next touch may come soon
+        settled = (t > lift + 0.3) & (t < min(lift + 0.5, next_touch))
         if settled.any():
             assert np.ptp(q[settled], axis=0).max() < 1e-6  # stopped at lift-off
-            assert np.linalg.norm(q[settled][0] - goal) > 0.05  # before reaching the pose
+            if k == 0:  # one touch is too short to get there: stopped on the way
+                assert np.linalg.norm(q[settled][0] - goal) > 0.05
 
 
 def test_robot_errors_are_one_line_and_stop_the_arm(tmp_path) -> None:

@@ -137,7 +137,9 @@ def test_each_touch_gives_one_command_after_the_dwell_until_lift_off() -> None:
         # contact seen, then the dwell; a sensitive skin senses the approaching hand's
         # fringe field up to ~50 ms before the labelled landing
         assert begin + 0.05 <= start.t <= begin + 0.3
-        assert start.t < end.t <= finish + 0.1  # lift-off ends it within the debounce
+        # lift-off ends it within the debounce and the moving average's release (a
+        # sensitive skin still feels the lifting hand's fringe field for a few frames)
+        assert start.t < end.t <= finish + 0.15
     scores = score_stream(commands, stream)
     assert (scores.recall, scores.precision, scores.n_false) == (1.0, 1.0, 0)
 

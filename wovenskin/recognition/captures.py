@@ -103,6 +103,8 @@ class CaptureRecipe:
     gain: float = 1.25
     noise: float = 0.01
     time_stretch: float = 1.0
+    shift: int = 0
+    taxel_gain: float = 0.0
     label_smoothing: float = 0.05
     weight_decay: float = 0.01
 
@@ -118,8 +120,12 @@ class CaptureRecipe:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 1):
                 raise ValueError(f"{name} must be a factor >= 1, got {value}")
-        if not (math.isfinite(self.noise) and self.noise >= 0):
-            raise ValueError(f"noise must not be negative, got {self.noise}")
+        for name in ("noise", "taxel_gain"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must not be negative, got {value}")
+        if not isinstance(self.shift, int | np.integer) or self.shift < 0:
+            raise ValueError(f"shift must be an integer >= 0, got {self.shift!r}")
         if not 0 <= self.label_smoothing < 1:
             raise ValueError(f"label_smoothing must lie in [0, 1), got {self.label_smoothing}")
         if not (math.isfinite(self.weight_decay) and self.weight_decay >= 0):
@@ -229,6 +235,8 @@ class CaptureWindowArray:
         gain: float = 1.0,
         noise: float = 0.0,
         time_stretch: float = 1.0,
+        shift: int = 0,
+        taxel_gain: float = 0.0,
     ) -> None:
         if not prepared:
             raise ValueError("no captures to cut windows from")
@@ -241,6 +249,8 @@ class CaptureWindowArray:
         self.gain = float(gain)
         self.noise = float(noise)
         self.time_stretch = float(time_stretch)
+        self.shift = int(shift)
+        self.taxel_gain = float(taxel_gain)
         grid = next(iter(prepared.values())).shape[1:]
         self.shape = (self.random_captures.size + len(self.fixed), self.window_frames, *grid)
         self.dtype = np.dtype(np.float32)
@@ -284,6 +294,12 @@ class CaptureWindowArray:
                 window = window[:, :, ::-1]
             if window.shape[1] == window.shape[2] and rng.random() < 0.5:
                 window = window.transpose(0, 2, 1)
+        if self.shift:
+            window = shifted(window, *rng.integers(-self.shift, self.shift + 1, size=2))
+        if self.taxel_gain > 0:
+            window = window * np.exp(
+                self.taxel_gain * rng.standard_normal(window.shape[1:], dtype=np.float32)
+            )
         if self.gain > 1:
             window = window * np.float32(math.exp(rng.uniform(-1, 1) * math.log(self.gain)))
         if self.noise > 0:
@@ -291,6 +307,16 @@ class CaptureWindowArray:
                 window.shape, dtype=np.float32
             )
         return window
+
+
+def shifted(frames: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    """``frames`` ``(T, R, C)`` moved by ``rows`` and ``cols`` taxels, zeros shifted in."""
+    out = np.zeros_like(frames)
+    r, c = frames.shape[1:]
+    out[:, max(rows, 0) : r + min(rows, 0), max(cols, 0) : c + min(cols, 0)] = frames[
+        :, max(-rows, 0) : r + min(-rows, 0), max(-cols, 0) : c + min(-cols, 0)
+    ]
+    return out
 
 
 def resample_frames(frames: np.ndarray, n: int) -> np.ndarray:
@@ -407,6 +433,7 @@ def _train_captures(
     windows = CaptureWindowArray(
         prepared, recipe.window_frames, random_captures, fixed, seed, recipe.symmetries,
         gain=recipe.gain, noise=recipe.noise, time_stretch=recipe.time_stretch,
+        shift=recipe.shift, taxel_gain=recipe.taxel_gain,
     )  # fmt: skip
     labels = np.concatenate(
         [captures.labels[random_captures], captures.labels[[c for c, _ in fixed]]]
