@@ -177,11 +177,10 @@ def evaluate_seed(
     seed: int, seconds: float = 60.0, config: ConditioningConfig | None = None
 ) -> SeedDetection:
     """Simulate ``seconds`` of stream ``seed``, condition it and score the detection."""
-    from wovenskin.sim.stream import simulate_stream
-
     from dataclasses import replace
 
     from wovenskin.sim.physics import SkinPhysics
+    from wovenskin.sim.stream import simulate_stream
 
     config = config if config is not None else ConditioningConfig()
     rng = np.random.default_rng(seed)
