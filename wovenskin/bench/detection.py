@@ -31,6 +31,7 @@ import numpy as np
 from wovenskin.gestures import INVALID
 from wovenskin.signal.conditioner import condition_recording
 from wovenskin.signal.config import ConditioningConfig
+from wovenskin.sim.physics import TYPICAL_GAIN_PF
 
 PHANTOM_LEAD_S = 0.05
 """Touched this long before an event's first contact is no phantom (hover)."""
@@ -165,7 +166,7 @@ class DetectionReport:
         return [s.line() for s in self.seeds] + [total]
 
 
-DETECTION_GAIN_PF = (1.5, 8.0)
+DETECTION_GAIN_PF = TYPICAL_GAIN_PF
 """Skin gains (pF) the contact detection is scored on: the range it was tuned for (a firm
 press changes a channel by 2-12 %).  The simulator draws far duller and far more
 sensitive skins for the recogniser's training; on those a light touch can sit at the
@@ -177,15 +178,11 @@ def evaluate_seed(
     seed: int, seconds: float = 60.0, config: ConditioningConfig | None = None
 ) -> SeedDetection:
     """Simulate ``seconds`` of stream ``seed``, condition it and score the detection."""
-    from dataclasses import replace
-
     from wovenskin.sim.physics import SkinPhysics
     from wovenskin.sim.stream import simulate_stream
 
     config = config if config is not None else ConditioningConfig()
-    rng = np.random.default_rng(seed)
-    physics = SkinPhysics.sample(rng)
-    physics = replace(physics, gain_pf=float(np.clip(physics.gain_pf, *DETECTION_GAIN_PF)))
+    physics = SkinPhysics.sample_typical(np.random.default_rng(seed))
     stream = simulate_stream(seconds, seed, physics=physics)
     calibration, out = condition_recording(stream.frames.astype(np.float32), config)
     t = stream.t

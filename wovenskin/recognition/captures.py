@@ -105,6 +105,7 @@ class CaptureRecipe:
     time_stretch: float = 1.0
     shift: int = 0
     taxel_gain: float = 0.0
+    mix: float = 0.0
     label_smoothing: float = 0.05
     weight_decay: float = 0.01
 
@@ -120,6 +121,8 @@ class CaptureRecipe:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 1):
                 raise ValueError(f"{name} must be a factor >= 1, got {value}")
+        if not 0 <= self.mix <= 1:
+            raise ValueError(f"mix must lie in [0, 1], got {self.mix}")
         for name in ("noise", "taxel_gain"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -237,6 +240,8 @@ class CaptureWindowArray:
         time_stretch: float = 1.0,
         shift: int = 0,
         taxel_gain: float = 0.0,
+        mix: float = 0.0,
+        partners: Mapping[int, Sequence[int] | np.ndarray] | None = None,
     ) -> None:
         if not prepared:
             raise ValueError("no captures to cut windows from")
@@ -251,6 +256,8 @@ class CaptureWindowArray:
         self.time_stretch = float(time_stretch)
         self.shift = int(shift)
         self.taxel_gain = float(taxel_gain)
+        self.mix = float(mix)
+        self.partners = {int(k): np.asarray(v, dtype=np.int64) for k, v in (partners or {}).items()}
         grid = next(iter(prepared.values())).shape[1:]
         self.shape = (self.random_captures.size + len(self.fixed), self.window_frames, *grid)
         self.dtype = np.dtype(np.float32)
@@ -271,7 +278,13 @@ class CaptureWindowArray:
         n_random = self.random_captures.size
         for k, i in enumerate(idx.tolist()):
             if i < n_random:
-                out[k] = self._random_window(self.prepared[int(self.random_captures[i])], rng)
+                capture = int(self.random_captures[i])
+                out[k] = self._random_window(self.prepared[capture], rng)
+                partners = self.partners.get(capture, ())
+                if self.mix > 0 and len(partners) and rng.random() < self.mix:
+                    other = self.prepared[int(rng.choice(partners))]
+                    share = np.float32(rng.uniform(0.0, 0.5))
+                    out[k] = (1 - share) * out[k] + share * self._random_window(other, rng)
             else:
                 capture, end = self.fixed[i - n_random]
                 out[k] = window_ending(self.prepared[capture], end, self.window_frames)
@@ -407,6 +420,18 @@ def _fixed_windows(
     ]
 
 
+def _mix_partners(captures: LabelledCaptures, ids: np.ndarray) -> dict[int, np.ndarray]:
+    """For every capture of ``ids``: the captures of ``ids`` with its label by other people
+    (all others with its label when one person gave them all)."""
+    labels, groups = captures.labels[ids], captures.groups[ids].astype(str)
+    out = {}
+    for i, label, group in zip(ids.tolist(), labels.tolist(), groups.tolist(), strict=True):
+        same = ids[(labels == label) & (ids != i)]
+        others = same[groups[(labels == label) & (ids != i)] != group]
+        out[int(i)] = others if others.size else same
+    return out
+
+
 def _train_captures(
     captures: LabelledCaptures,
     source: str,
@@ -433,7 +458,8 @@ def _train_captures(
     windows = CaptureWindowArray(
         prepared, recipe.window_frames, random_captures, fixed, seed, recipe.symmetries,
         gain=recipe.gain, noise=recipe.noise, time_stretch=recipe.time_stretch,
-        shift=recipe.shift, taxel_gain=recipe.taxel_gain,
+        shift=recipe.shift, taxel_gain=recipe.taxel_gain, mix=recipe.mix,
+        partners=_mix_partners(captures, train_ids) if recipe.mix > 0 else None,
     )  # fmt: skip
     labels = np.concatenate(
         [captures.labels[random_captures], captures.labels[[c for c, _ in fixed]]]

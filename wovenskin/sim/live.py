@@ -148,7 +148,9 @@ class SimulatedSkinSource:
         self.layout = layout if layout is not None else SkinLayout()
         fs = float(sample_rate_hz)
         rng = np.random.default_rng(self.seed)
-        self.physics = physics if physics is not None else SkinPhysics.sample(rng)
+        # A typical skin by default: a demonstration should not land on the dullest skin
+        # the simulator can draw (pass ``physics`` for any other).
+        self.physics = physics if physics is not None else SkinPhysics.sample_typical(rng)
         self.person = person if person is not None else Person.sample(rng)
         self._model = SkinModel(self.physics, self.layout, int(rng.integers(2**31)), fs)
         self._scheduler = EventScheduler(

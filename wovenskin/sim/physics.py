@@ -199,6 +199,17 @@ class SkinPhysics:
             values["dead_channel_fraction"] = 0.0
         return cls(**values)
 
+    @classmethod
+    def sample_typical(cls, rng: np.random.Generator) -> SkinPhysics:
+        """A random skin of typical response: :meth:`sample` with the gain kept within
+        :data:`TYPICAL_GAIN_PF` (a firm press changes a channel by about 2-12 %).
+
+        The full range trains and tests recognisers; a demonstration skin (the
+        dashboard's, ``wovenskin run``'s) and the contact-detection benchmark use this one.
+        """
+        physics = cls.sample(rng)
+        return replace(physics, gain_pf=float(np.clip(physics.gain_pf, *TYPICAL_GAIN_PF)))
+
     def without_noise(self) -> SkinPhysics:
         """The same skin with every random disturbance off (noise, mains, drift, glitches)."""
         return replace(
@@ -235,6 +246,9 @@ class SkinPhysics:
             )
         return "\n".join(lines)
 
+
+TYPICAL_GAIN_PF = (1.5, 8.0)
+"""Gain range (pF) of a skin of typical response (:meth:`SkinPhysics.sample_typical`)."""
 
 CONTACT_KINDS = ("fingertip", "finger", "palm", "forearm", "sleeve", "hand_back")
 
