@@ -1,10 +1,11 @@
 """The trained default model shipped inside the package, and how to find it.
 
 The checkpoint directory ``wovenskin/models/default/`` holds ``meta.json`` and
-``model.onnx`` (all that inference needs, with ONNX Runtime), ``model.pt`` (the torch
-weights, to fine-tune on recordings of your own skin), the run's ``history.json`` and
-``learning_curve.png``, and ``MODEL_CARD.md`` (its data, the command that reproduces it,
-and its measured figures).
+``model.onnx`` (all that inference needs, with ONNX Runtime) and ``MODEL_CARD.md`` (its
+data, the command that reproduces it, and its measured figures).
+``wovenskin/models/stream/`` holds the stream-recipe model beside it, with its torch
+weights (``model.pt``, to fine-tune), ``history.json`` and ``learning_curve.png``; its card
+says why it is not the default yet.
 """
 
 from __future__ import annotations
