@@ -452,3 +452,15 @@ def test_field_spread_widens_a_fingertip_as_a_gaussian_blur_would():
     expected = (blurred.reshape(rows, s, cols, s) * sharp._sub_weight[:, None, :]).mean(axis=(1, 3))
     got = spread.pressure_response([track], 3)[1]
     assert np.allclose(got, expected, atol=2e-5 * expected.max() + 1e-9)
+
+
+def test_sample_typical_keeps_the_gain_of_a_typical_skin():
+    from wovenskin.sim.physics import TYPICAL_GAIN_PF
+
+    for seed in range(40):
+        wide = SkinPhysics.sample(np.random.default_rng(seed))
+        typical = SkinPhysics.sample_typical(np.random.default_rng(seed))
+        assert TYPICAL_GAIN_PF[0] <= typical.gain_pf <= TYPICAL_GAIN_PF[1]
+        assert replace(typical, gain_pf=wide.gain_pf) == wide  # only the gain differs
+    gains = [SkinPhysics.sample(np.random.default_rng(s)).gain_pf for s in range(40)]
+    assert min(gains) < TYPICAL_GAIN_PF[0] and max(gains) > TYPICAL_GAIN_PF[1]
