@@ -8,6 +8,15 @@ each as a vector: the change points along the remaining difference, so a start f
 or a release keeps the direction of the commanded twist (it is scaled, never clipped per
 axis). Braking is planned in discrete time so the twist lands on the target without
 overshoot whenever the limits allow it.
+
+A release is different: when a part's target becomes zero (the command ended), that part
+brakes at once along its current direction, whatever its acceleration was, with a constant
+deceleration of ``max(acceleration limit, speed at release / release_stop_s)``, so it is at
+rest within ``release_stop_s`` (0.1 s by default) from any speed. Like a real arm's stop
+ramp this is not jerk-limited: a jerk-limited release first has to undo the acceleration
+of a start still in progress (a 0.2 s command kept speeding up for 0.1 s after its end and
+moved for 0.37 s), and from the speed caps the start's acceleration limit would need a
+whole second. Starts, and changes between two commands, stay jerk-limited S-curves.
 """
 
 from __future__ import annotations
@@ -19,19 +28,31 @@ import numpy as np
 from wovenskin.control.mapping import MotionSettings
 
 LANDED = 1e-12  # m/s or rad/s: closer than this to the target counts as on it
+RELEASE_STOP_S = 0.1  # s: a released part brakes to rest within this time from any speed
 
 
 class TwistShaper:
     """Jerk- and acceleration-limited tracking of a target twist (see the module docstring)."""
 
-    def __init__(self, settings: MotionSettings | None = None) -> None:
+    def __init__(
+        self, settings: MotionSettings | None = None, release_stop_s: float = RELEASE_STOP_S
+    ) -> None:
+        if not (math.isfinite(release_stop_s) and release_stop_s > 0.0):
+            raise ValueError(f"release_stop_s must be a positive number, got {release_stop_s!r}")
         self.settings = settings or MotionSettings()
+        self.release_stop_s = float(release_stop_s)
         self.reset()
 
     def reset(self) -> None:
         """Forget the motion: the commanded twist and its acceleration become zero."""
         self.twist = np.zeros(6)
         self.acceleration = np.zeros(6)
+        self.braking = [0.0, 0.0]  # deceleration of a running release brake: linear, angular
+
+    @property
+    def releasing(self) -> bool:
+        """Whether a part is braking after its command ended."""
+        return any(self.braking)
 
     def update(self, target: np.ndarray, dt: float) -> np.ndarray:
         """Advance ``dt`` seconds toward ``target`` and return the twist to command now."""
@@ -47,13 +68,36 @@ class TwistShaper:
         s = self.settings
         parts = ((slice(0, 3), s.linear_accel, s.linear_jerk), (slice(3, 6), s.angular_accel,
                  s.angular_jerk))  # fmt: skip
-        for part, accel_limit, jerk_limit in parts:
-            velocity, acceleration = approach(
-                self.twist[part], self.acceleration[part], goal[part], dt, accel_limit, jerk_limit
-            )
+        for index, (part, accel_limit, jerk_limit) in enumerate(parts):
+            if not np.any(goal[part]) and np.any(self.twist[part]):  # released: brake now
+                if self.braking[index] == 0.0:
+                    speed = float(np.linalg.norm(self.twist[part]))
+                    self.braking[index] = max(accel_limit, speed / self.release_stop_s)
+                velocity, acceleration = brake(self.twist[part], dt, self.braking[index])
+                if not np.any(velocity):
+                    self.braking[index] = 0.0
+                    acceleration = np.zeros(3)  # at rest: a new start begins from nothing
+            else:
+                if self.braking[index]:  # a new command during the brake: start from here
+                    self.braking[index] = 0.0
+                    self.acceleration[part] = 0.0
+                velocity, acceleration = approach(
+                    self.twist[part], self.acceleration[part], goal[part], dt, accel_limit,
+                    jerk_limit,
+                )  # fmt: skip
             self.twist[part] = velocity
             self.acceleration[part] = acceleration
         return self.twist.copy()
+
+
+def brake(velocity: np.ndarray, dt: float, deceleration: float) -> tuple[np.ndarray, np.ndarray]:
+    """One tick of a release brake: ``velocity`` shrinks along its direction by
+    ``deceleration * dt`` (to exactly zero when less is left); returns the new velocity and
+    the acceleration that took it there."""
+    speed = float(np.linalg.norm(velocity))
+    step = deceleration * dt
+    new = np.zeros_like(velocity) if speed <= step else velocity * (1.0 - step / speed)
+    return new, (new - velocity) / dt
 
 
 def approach(
