@@ -63,3 +63,66 @@ def test_bad_specs_list_the_valid_forms(spec: str) -> None:
     with pytest.raises(ValueError, match=r"valid forms: sim, tm:HOST\[:PORT\], ur:HOST") as info:
         make_robot(spec)
     assert "\n" not in str(info.value)
+
+
+# -- one place, one line -------------------------------------------------------------------
+
+
+def test_specs_are_parsed_without_building_anything() -> None:
+    from wovenskin.robots.registry import parse_robot_spec
+
+    spec = parse_robot_spec(" UR:10.0.0.5?model=UR5e&safety=degraded ")
+    assert (spec.kind, spec.host, spec.port) == ("ur", "10.0.0.5", None)
+    assert spec.options == {"model": "ur5e", "safety": "degraded"} and spec.degraded_safety
+    spec = parse_robot_spec("tm:arm.local:6000")
+    assert (spec.kind, spec.host, spec.port) == ("tm", "arm.local", 6000)
+    assert not spec.degraded_safety
+    assert parse_robot_spec("sim?safety=full").options == {"safety": "full"}
+
+
+def test_the_degraded_safety_opt_in_travels_with_the_backend() -> None:
+    assert make_robot("ur:10.0.0.5?safety=degraded").degraded_safety
+    assert not make_robot("ur:10.0.0.5").degraded_safety
+    assert make_robot("tm:10.0.0.5?safety=DEGRADED").degraded_safety
+
+
+@pytest.mark.parametrize(
+    ("spec", "why"),
+    [
+        ("tm:host?speed=2", "unknown option 'speed=2'"),  # was taken for the host 'host?speed=2'
+        ("tm:host?", "empty option list"),
+        ("tm:ho/st", "no valid host"),
+        ("ur:h?model=ur5e&model=ur10e", "option 'model' twice"),
+        ("ur:h?model=", "no value for option 'model'"),
+        ("ur:h?model", "no value for option 'model'"),
+        ("sim?safety=off", "unknown safety mode 'off'"),
+        ("sim:?safety=degraded", "not understood"),
+        ("ur:h?model=ur99", "unknown UR model 'ur99'"),
+    ],
+)
+def test_bad_options_are_one_line_naming_the_problem(spec: str, why: str) -> None:
+    from wovenskin.robots.registry import parse_robot_spec
+
+    for parse in (parse_robot_spec, make_robot):
+        with pytest.raises(ValueError, match="valid forms") as info:
+            parse(spec)
+        assert why in str(info.value) and "\n" not in str(info.value)
+
+
+def test_no_other_module_parses_robot_specs() -> None:
+    """Robot spec strings are taken apart in robots/registry.py only (other modules pass
+    them on to make_robot or parse_robot_spec)."""
+    from pathlib import Path
+
+    import wovenskin
+
+    root = Path(wovenskin.__file__).parent
+    offenders = []
+    for path in root.rglob("*.py"):
+        if path.name == "registry.py" and path.parent.name == "robots":
+            continue
+        text = path.read_text(encoding="utf-8")
+        for needle in ('"tm:"', "'tm:'", '"ur:"', "'ur:'", 'startswith("tm', 'startswith("ur'):
+            if needle in text:
+                offenders.append(f"{path.relative_to(root)}: {needle}")
+    assert offenders == []

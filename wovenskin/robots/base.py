@@ -10,12 +10,22 @@ tool-frame twists); quaternions are ``[w, x, y, z]``.
 A backend's methods raise :class:`RobotError` with a one-line message when the arm
 cannot do what was asked (disconnected, fault, unreachable pose); they never leave the arm
 moving after an error.
+
+Beyond the abstract methods, a backend declares what else it offers in
+:meth:`Robot.capabilities` (a :class:`RobotCapabilities`): its kinematic model, the scene
+to draw, named default poses, how it stops and how closely it follows a twist. Nothing is
+found by probing for method names: the safety layer refuses an arm whose declaration lacks
+what its checks need unless the user opts into degraded safety
+(:attr:`Robot.degraded_safety`, set by the robot spec's ``safety=degraded``).
 """
 
 from __future__ import annotations
 
 import abc
+import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -97,6 +107,102 @@ class JointLimits:
     max_speed: np.ndarray  # (6,) rad/s
 
 
+JointFunction = Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """A kinematic model of the arm's tool centre point, base frame, at joint angles ``q``."""
+
+    forward: JointFunction  # q -> 4x4 pose, base <- TCP
+    jacobian: JointFunction  # q -> 6x6 geometric Jacobian: [v; w] = J @ dq
+
+
+@dataclass(frozen=True)
+class SceneModel:
+    """How to draw the arm: a MuJoCo model of it and where its skin patch sits.
+
+    ``load`` builds the ``mujoco.MjModel`` (called when a view needs it, so declaring a
+    scene costs nothing); ``skin_site`` names the patch's site, whose frame has the skin's
+    ``up`` and ``right`` axes; ``caveat`` is one line the view shows when the drawing is
+    only a stand-in for the real arm.
+    """
+
+    load: Callable[[], Any]
+    skin_site: str
+    up_axis: np.ndarray
+    right_axis: np.ndarray
+    caveat: str = ""
+
+
+@dataclass(frozen=True)
+class RobotCapabilities:
+    """What a backend offers besides the abstract :class:`Robot` methods.
+
+    - ``kinematics``: its TCP's forward kinematics and Jacobian; the safety layer needs
+      both for its full checks (joint margins predicted from the commanded twist, joint
+      moves checked along their path and slowed to the TCP caps).
+    - ``scene``: the model the dashboard draws.
+    - ``default_poses``: joint angles (rad) for named poses (``home``, ``initial``) used
+      when the user stored none.
+    - ``stop_time_s`` / ``stop_deceleration``: how :meth:`Robot.stop` brings the arm to
+      rest: within a fixed time from any speed, and/or at a constant TCP deceleration
+      ``(linear m/s^2, angular rad/s^2)``; speed falls at least linearly, so the distance
+      covered is at most speed x stop time / 2. Undeclared, the safety layer assumes
+      :attr:`~wovenskin.control.safety.SafetyLimits.assumed_stop_time_s`.
+    - ``tracking_error``: how closely a twist is followed, as measured: the reported TCP
+      linear (angular) velocity differs from the commanded one by at most this fraction
+      of the commanded speed. The safety layer leaves that much headroom under its caps.
+    - ``how_to_complete``: one line telling the user how to supply what is missing.
+
+    Joint limits are not here: every backend must give them (:meth:`Robot.joint_limits`).
+    """
+
+    kinematics: Kinematics | None = None
+    scene: SceneModel | None = None
+    default_poses: Mapping[str, np.ndarray] = field(default_factory=dict)
+    stop_time_s: float | None = None
+    stop_deceleration: tuple[float, float] | None = None
+    tracking_error: float = 0.0
+    how_to_complete: str = ""
+
+    def __post_init__(self) -> None:
+        if self.stop_time_s is not None and not (
+            math.isfinite(self.stop_time_s) and self.stop_time_s >= 0.0
+        ):
+            raise ValueError(f"stop_time_s must be >= 0, got {self.stop_time_s!r}")
+        if self.stop_deceleration is not None:
+            linear, angular = self.stop_deceleration
+            if not (linear > 0.0 and angular > 0.0):
+                raise ValueError(
+                    f"stop_deceleration must be positive, got {self.stop_deceleration}"
+                )
+        if not (math.isfinite(self.tracking_error) and 0.0 <= self.tracking_error < 1.0):
+            raise ValueError(f"tracking_error must be in [0, 1), got {self.tracking_error!r}")
+        poses = {}
+        for name, q in self.default_poses.items():
+            poses[name] = finite_vector(q, N_JOINTS, f"default pose {name!r}")
+        object.__setattr__(self, "default_poses", poses)
+
+    def missing_for_safety(self) -> list[str]:
+        """What the safety layer's full checks need and this declaration lacks."""
+        return [] if self.kinematics is not None else ["kinematics (forward kinematics, Jacobian)"]
+
+    def stop_time(self, twist: np.ndarray) -> float | None:
+        """Longest time :meth:`Robot.stop` takes to bring ``twist`` to rest, or ``None``
+        when the backend declares neither a stop time nor a deceleration."""
+        if self.stop_time_s is None and self.stop_deceleration is None:
+            return None
+        t = self.stop_time_s or 0.0
+        if self.stop_deceleration is not None:
+            v = np.asarray(twist, dtype=float)
+            linear, angular = self.stop_deceleration
+            t = max(
+                t, float(np.linalg.norm(v[:3])) / linear, float(np.linalg.norm(v[3:])) / angular
+            )
+        return t
+
+
 class Robot(abc.ABC):
     """One 6-DOF arm. Backends implement every abstract method.
 
@@ -108,6 +214,12 @@ class Robot(abc.ABC):
     """
 
     name: str = "robot"
+    degraded_safety: bool = False  # the user's opt-in to degraded safety (robot spec)
+
+    def capabilities(self) -> RobotCapabilities:
+        """What this backend offers beyond the abstract methods; a backend that declares
+        nothing is refused by the safety layer unless :attr:`degraded_safety` is set."""
+        return RobotCapabilities()
 
     @abc.abstractmethod
     def connect(self) -> None:
