@@ -190,12 +190,75 @@ def test_a_stalled_live_skin_stops_the_arm_by_the_wall_clock(tmp_path) -> None:
         session.step()
     assert session.state.gesture == "swipe_up" and session.state.robot.tcp_speed > 0.01
     assert not session.safety.stopped
+    robot_t = session.state.robot.t
     for _ in range(30):  # 0.3 s of wall time without frames
         session.step(timeout=0)
     assert session.safety.stopped
     assert "skin" in session.safety.stops[-1].reason.lower()
     assert session.now > session.state.t + 0.1  # the session clock kept going
+    # The simulated arm moves on the session clock too, so it really stopped and says so
+    # (it was stepped only on skin frames and reported 50 mm/s, moving, for the whole stall).
+    robot = session.state.robot
+    assert robot.tcp_speed < 1e-3 and not robot.moving
+    assert robot.t - robot_t == pytest.approx(session.now - session.state.t)
     session.close()
+
+
+def test_a_stall_is_traced_from_the_idle_loop(tmp_path) -> None:
+    stream = stream_of("swipe_up")
+    path = tmp_path / "s.npz"
+    write_labelled_stream(path, stream)
+    mid = int(((stream.event_start_s[0] + stream.event_end_s[0]) / 2) * 200)
+    live_skin = LiveSkin(StallingSource(path, mid))
+    clock = {"now": 0.0}
+
+    def wall() -> float:
+        clock["now"] += 0.01
+        return clock["now"]
+
+    buffer = io.StringIO()
+    session = ControlSession(
+        live_skin, LivePipeline.for_live_skin(live_skin, ContactMeans("swipe_up")), SimRobot(),
+        trace=TraceWriter(buffer), wall_clock=wall,
+    )  # fmt: skip
+    session.start()
+    while session.state.ticks < mid - 120:
+        session.step()
+    last_tick = session.state.t
+    for _ in range(50):
+        session.step(timeout=0)
+    records = [json.loads(line) for line in buffer.getvalue().splitlines()]
+    stalled = [r for r in records if r["t"] > last_tick]
+    assert stalled and stalled[-1]["tcp_speed"] < 1e-3  # the trace shows the arm at rest
+    assert np.all(np.diff([r["t"] for r in records]) > 0)
+    session.close()
+
+
+def test_a_huge_jump_in_replay_time_is_capped_and_reported(tmp_path, monkeypatch) -> None:
+    """A replay whose timestamps jump by 1e300 hung ``run``: the simulated arm was stepped
+    by the whole jump, ceil(1e300 * 250) substeps."""
+    stream = stream_of("swipe_up")
+    start, end = stream.event_start_s[0], stream.event_end_s[0]
+    i = int(np.searchsorted(stream.t, start + 0.6 * (end - start)))  # during the command
+    t = stream.t[: i + 1].copy()
+    t[i] += 1e300
+    jumped = LabelledStream(stream.frames[: i + 1], t, stream.sample_rate_hz)
+    substeps = {"n": 0}
+    substep = SimRobot._substep
+
+    def counted(self, h):
+        substeps["n"] += 1
+        assert substeps["n"] < 100_000, "the simulated arm is stepped without end"
+        substep(self, h)
+
+    monkeypatch.setattr(SimRobot, "_substep", counted)
+    messages: list[str] = []
+    session, buffer = replay_session(tmp_path, jumped, "swipe_up", on_message=messages.append)
+    result, records = run_and_trace(session, buffer)
+    assert result.ended == "the skin stream ended"
+    capped = [m for m in messages if "capped" in m]
+    assert len(capped) == 1 and "1e+300" in capped[0]
+    assert records[-1]["tcp_speed"] < 0.06  # stopped by the watchdog, no further motion
 
 
 def test_a_host_pause_does_not_stop_a_replay_played_faster_than_real_time(tmp_path) -> None:

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from wovenskin.robots.base import Pose, RobotError
 from wovenskin.robots.sim import SimRobot, tm5_900
-from wovenskin.robots.sim.robot import STALE_COMMAND_S, STOP_TIME_S
+from wovenskin.robots.sim.robot import MAX_STEP_S, STALE_COMMAND_S, STOP_TIME_S
 
 TICK = 0.02
 LIMITS = tm5_900.JOINT_LIMITS
@@ -251,3 +251,20 @@ def test_constructor_checks_its_arguments() -> None:
     np.testing.assert_array_equal(SimRobot(q0=tm5_900.HOME_Q).data.qpos, tm5_900.HOME_Q)
     with pytest.raises(ValueError, match="dt"):
         SimRobot().step(float("nan"))
+
+
+def test_a_huge_step_is_capped_and_logged(robot: SimRobot, caplog: pytest.LogCaptureFixture):
+    """step(1e300) ran ceil(1e300 * ik_rate_hz) substeps: it never returned."""
+    robot.send_twist(np.array([0.05, 0.0, 0.0, 0.0, 0.0, 0.0]))
+    with caplog.at_level("WARNING", logger="wovenskin.robots.sim.robot"):
+        robot.step(1e300)
+    assert robot.t == pytest.approx(MAX_STEP_S)
+    assert "capped" in caplog.text and "1e+300" in caplog.text
+    state = robot.state()
+    assert not state.moving and state.tcp_speed == 0.0  # the stale command stopped it
+
+
+def test_the_stop_leaves_room_for_a_control_tick_within_0_1_s() -> None:
+    """A STOP must get the TCP below 1 mm/s within 0.1 s; the stop arrives between ticks,
+    so the arm's own ramp must be shorter by at least one 5 ms tick."""
+    assert STOP_TIME_S <= 0.1 - 0.005

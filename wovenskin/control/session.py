@@ -6,10 +6,14 @@ once; then the loop ticks once per frame of the block, at the frame's time on th
 clock (200 Hz for the default skin): the command active at that time is mapped
 (:class:`~wovenskin.control.mapping.ActionMapping`) to a target twist, shaped by
 :class:`~wovenskin.control.motion.TwistShaper` and sent through
-:class:`~wovenskin.control.safety.SafetyLayer`, and a simulated robot is advanced by the
-tick's ``dt`` -- so a replay runs faster than real time and gives the same motion every
-time.  Pose actions start a joint move to the stored pose (:class:`PoseStore`) and, when
-hold-to-run, stop as soon as the command ends.
+:class:`~wovenskin.control.safety.SafetyLayer`, and a simulated robot is advanced to the
+tick's time -- so a replay runs faster than real time and gives the same motion every
+time.  A simulated robot follows the session clock, not only the frames: while no frames
+arrive it is stepped to the session clock too (a stalled live skin), so it stops with the
+watchdog and reports its true state; the trace gets a line per idle step during a stall.
+One robot step covers at most ``SessionSettings.max_robot_step_s`` (a jump in the skin's
+timestamps is cut, with a message).  Pose actions start a joint move to the stored pose
+(:class:`PoseStore`) and, when hold-to-run, stop as soon as the command ends.
 
 Safety: every skin frame is a skin heartbeat and every tick a command heartbeat; the
 layer's watchdogs run on the session clock, which is the skin clock while frames arrive
@@ -22,6 +26,7 @@ reported as one line and never move the robot.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections import deque
 from collections.abc import Callable
@@ -38,6 +43,8 @@ from wovenskin.control.safety import SafetyLayer, SafetyLimits, StopEvent
 from wovenskin.control.trace import TraceWriter
 from wovenskin.robots.base import Robot, RobotError, RobotState
 
+log = logging.getLogger(__name__)
+
 
 @dataclass(frozen=True)
 class SessionSettings:
@@ -45,6 +52,7 @@ class SessionSettings:
 
     pose_speed_fraction: float = 0.2  # joint moves to stored poses, fraction of joint limits
     max_shaper_dt_s: float = 0.05  # longest step the twist shaper integrates at once
+    max_robot_step_s: float = 0.5  # longest step of a simulated robot (longer ones are cut)
     error_repeat_s: float = 1.0  # the same error line is reported at most this often
     idle_timeout_s: float = 0.02  # longest wait for skin frames in one step
     # Time without frames counts on the wall clock (a live skin).  False only for a source
@@ -78,6 +86,8 @@ class SessionState:
     last_error: str = ""
     errors: int = 0
     ended: bool = False
+    unsure: str = ""  # "unsure: a 0.55 / b 0.40" while the recogniser hesitates (see below)
+    unsure_t: float | None = None  # session time of the newest unsure reading
 
 
 @dataclass
@@ -156,6 +166,8 @@ class ControlSession:
         self._last_wall: float | None = None  # wall time when it arrived
         self._last_seq = -1
         self._tick_t: float | None = None
+        self._robot_t: float | None = None  # session time a simulated robot has reached
+        self._traced_t: float | None = None  # time of the newest trace line
         self._pose_move: _PoseMove | None = None
         self._pose_tried: float | None = None  # gesture_since of the last pose command
         self._stops_seen = 0
@@ -380,6 +392,39 @@ class ControlSession:
             return
         self._now = max(self._now, self._last_t + (self._wall() - self._last_wall))
         self._check_watchdogs(self._now)
+        if not self._simulated:
+            return
+        self._advance_robot(self._now)
+        self._read_robot()
+        stalled = self._now - self._last_t > self.safety.limits.watchdog_s
+        if stalled and self.state.robot is not None:
+            self._trace(self._now)
+
+    def _advance_robot(self, t: float) -> None:
+        """Step a simulated robot from the time it has reached to ``t`` (never backwards,
+        at most ``max_robot_step_s`` at once: a longer gap is cut and reported)."""
+        if not self._simulated:
+            return
+        if self._robot_t is None:
+            self._robot_t = t
+            return
+        dt = t - self._robot_t
+        if not dt > 0.0:
+            return
+        self._robot_t = t
+        cap = self.settings.max_robot_step_s
+        if dt > cap:
+            text = f"skin time jumped by {dt:.3g} s: the simulated arm is stepped {cap:g} s"
+            log.warning("%s", text)
+            self._message(f"{t:8.2f} s  {text} (capped)")
+            dt = cap
+        try:
+            if self._steps_through_safety:
+                self.safety.step(dt)
+            else:
+                self.robot.step(dt)
+        except RobotError as exc:
+            self._robot_failed(exc)
 
     def _on_block(self, block: Any) -> int:
         times = np.asarray(block.t, dtype=np.float64).reshape(-1)
@@ -422,25 +467,25 @@ class ControlSession:
         self.safety.heartbeat_skin(t)
         self._clear_recovered_stops()
         self._control(t, dt)
-        if dt > 0 and self._simulated:
-            try:
-                if self._steps_through_safety:
-                    self.safety.step(dt)
-                else:
-                    self.robot.step(dt)
-            except RobotError as exc:
-                self._robot_failed(exc)
+        self._advance_robot(t)
         self._read_robot()
         self.state.t = t
         self.state.ticks += 1
         self.state.stopped = self.safety.stopped
         if self.state.robot is not None:
-            if self.trace is not None:
-                self.trace.write(t, self.state.gesture, self.state.robot)
-            if self.recorder is not None:
-                self._record_robot(t)
+            self._trace(t)
         if self._on_tick is not None:
             self._on_tick(self)
+
+    def _trace(self, t: float) -> None:
+        """The trace line and recorded robot state at ``t`` (never out of order)."""
+        if self._traced_t is not None and t <= self._traced_t:
+            return
+        self._traced_t = t
+        if self.trace is not None:
+            self.trace.write(t, self.state.gesture, self.state.robot)
+        if self.recorder is not None:
+            self._record_robot(t)
 
     def _control(self, t: float, dt: float) -> None:
         gesture = self.state.gesture
@@ -573,6 +618,48 @@ class ControlSession:
         why = f" ({last.reason})" if last is not None else ""
         self._message(f"{self._now:8.2f} s  recovered from the stop{why}")
 
+    # -- what views show: why nothing moves
+
+    def holding(self) -> tuple[str, ...]:
+        """Which limits hold the arm back now, one line each, for the views: the safety
+        layer's report (a latched stop with how it ends, the speed cap, a workspace box
+        face, a joint margin) and a simulated arm's own slow-down near a singularity or a
+        joint's speed limit while a gesture's twist runs.  Empty when nothing holds it."""
+        held = list(getattr(self.safety, "limiting", ()))
+        if self.safety.stopped:
+            if self._user_stop:
+                return ("STOP pressed: Resume (or space) to move again",)
+            if self.state.gesture is not None:
+                held.append("lift your fingers: it resumes once the skin streams again")
+            else:
+                held.append("resumes by itself once the skin streams again")
+            return tuple(held)
+        if not self.state.action.startswith("twist"):
+            return ()
+        info = getattr(self.robot, "ik_info", None)
+        scale = float(getattr(info, "scale", 1.0))
+        why = getattr(info, "limited_by", None)
+        if why and scale < 0.999 and np.any(self.state.twist):
+            held.append(f"{why}: the arm moves at {scale:.0%} of the command")
+        return tuple(held)
+
+    def _note_unsure(self, t: float, probabilities: np.ndarray) -> None:
+        """Keep the recogniser's hesitation for the views: while fingers are on the skin
+        and no command runs, the two likeliest gestures when the best one is at least
+        :data:`UNSURE_FLOOR` but would not fire (below the model's ``min_probability``,
+        or ``invalid`` ranks first).  The line stays :data:`UNSURE_HOLD_S` after the touch,
+        so a user sees how the gesture was read and can draw it better."""
+        names = self.state.class_names
+        if self.state.gesture is not None:
+            self.state.unsure, self.state.unsure_t = "", None
+            return
+        line = unsure_line(probabilities, names, _min_probability(self.pipeline))
+        contacts = getattr(getattr(self.live_skin, "state", None), "contacts", None)
+        if line and contacts:
+            self.state.unsure, self.state.unsure_t = line, t
+        elif self.state.unsure_t is not None and t - self.state.unsure_t > UNSURE_HOLD_S:
+            self.state.unsure, self.state.unsure_t = "", None
+
     # -- reporting
 
     def _message(self, text: str) -> None:
@@ -599,6 +686,7 @@ class ControlSession:
         if probabilities.size and self.state.class_names:
             k = int(np.argmax(probabilities))
             self.state.top = (self.state.class_names[k], float(probabilities[k]))
+            self._note_unsure(t, probabilities)
         if self.recorder is not None:
             top, p = self.state.top
             payload = {"top": top, "p": p, "probabilities": probabilities}
@@ -616,6 +704,36 @@ class ControlSession:
             "gesture": self.state.gesture,
         }
         self.recorder.add_annotation("robot", t, payload)
+
+
+UNSURE_FLOOR = 0.3  # a gesture this likely is worth showing when nothing fires
+UNSURE_HOLD_S = 2.0  # how long the last unsure reading stays after the touch
+
+
+def unsure_line(
+    probabilities: np.ndarray, class_names: tuple[str, ...], min_probability: float
+) -> str:
+    """``"unsure: swipe_left 0.55 / swipe_left_2f 0.40"`` when the likeliest gesture
+    reaches :data:`UNSURE_FLOOR` but would not fire (below ``min_probability`` or behind
+    ``invalid``); ``""`` otherwise."""
+    p = np.asarray(probabilities, dtype=float).reshape(-1)
+    if p.size != len(class_names) or not np.all(np.isfinite(p)):
+        return ""
+    gestures = [k for k, name in enumerate(class_names) if name != "invalid"]
+    ranked = sorted(gestures, key=lambda k: -p[k])[:2]
+    if not ranked or p[ranked[0]] < UNSURE_FLOOR:
+        return ""
+    best = ranked[0]
+    if int(np.argmax(p)) == best and p[best] >= min_probability:
+        return ""  # it would fire
+    shown = " / ".join(f"{class_names[k]} {p[k]:.2f}" for k in ranked if p[k] >= 0.05)
+    return f"unsure: {shown}"
+
+
+def _min_probability(pipeline: Any) -> float:
+    """The arbiter's ``min_probability`` (0 when the pipeline does not say)."""
+    settings = getattr(getattr(pipeline, "settings", None), "arbiter", None)
+    return float(getattr(settings, "min_probability", 0.0) or 0.0)
 
 
 def _simulated_default_pose(robot: Robot, name: str) -> np.ndarray | None:

@@ -6,12 +6,15 @@ caller decides how fast that runs). Velocity commands go through
 moves follow quintic joint-space profiles within the joints' speed limits. Like the real
 arm, it stops by itself when no velocity command arrives for :data:`STALE_COMMAND_S`,
 decelerates to rest within :data:`STOP_TIME_S` on ``stop``, and a refused command stops
-the arm and raises :class:`RobotError` without starting any motion. The joint positions
-live in ``data.qpos`` (kept up to date with ``mj_kinematics``) for viewers.
+the arm and raises :class:`RobotError` without starting any motion. One ``step`` advances
+at most :data:`MAX_STEP_S` (a longer one is cut, with a log line: the number of substeps
+stays bounded whatever the caller's clock does). The joint positions live in
+``data.qpos`` (kept up to date with ``mj_kinematics``) for viewers.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
 from importlib import resources
@@ -32,8 +35,13 @@ from wovenskin.robots.base import (
 from wovenskin.robots.sim import tm5_900
 from wovenskin.robots.sim.ik import DifferentialIK, IKInfo
 
+log = logging.getLogger(__name__)
+
 STALE_COMMAND_S = 0.2  # a twist older than this (simulated seconds) stops the arm
-STOP_TIME_S = 0.1  # stop() brings the arm to rest within this time
+# stop() brings the arm to rest within this time: a STOP or a watchdog stop must get the TCP
+# below 1 mm/s within 0.1 s, and it reaches the arm up to one 5 ms control tick late.
+STOP_TIME_S = 0.08
+MAX_STEP_S = 1.0  # longest simulated time one step() advances (longer steps are cut)
 MOVING_SPEED = 1e-6  # rad/s; joint speeds below this count as standing still
 MODEL_FILE = "tm5_900.xml"
 PLAN_SAMPLES = 41
@@ -289,9 +297,13 @@ class SimRobot(Robot):
     # -- simulation ----------------------------------------------------------------
 
     def step(self, dt: float) -> None:
-        """Advance the simulation by ``dt`` seconds in substeps of at most 1/ik_rate_hz."""
+        """Advance the simulation by ``dt`` seconds (at most :data:`MAX_STEP_S`) in substeps
+        of at most 1/ik_rate_hz."""
         if not (math.isfinite(dt) and dt >= 0.0):
             raise ValueError(f"dt must be a finite non-negative number of seconds, got {dt}")
+        if dt > MAX_STEP_S:
+            log.warning("simulated arm: a step of %.3g s capped to %g s", dt, MAX_STEP_S)
+            dt = MAX_STEP_S
         substeps = max(1, math.ceil(dt * self.ik_rate_hz - 1e-9))
         for _ in range(substeps):
             self._substep(dt / substeps)
