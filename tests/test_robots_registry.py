@@ -9,6 +9,8 @@ from wovenskin.robots.registry import make_robot
 from wovenskin.robots.techman import TechmanRobot
 from wovenskin.robots.ur import URRobot
 
+VALID_FORMS = r"valid forms: sim, tm:HOST\[:PORT\]\[\?listen_port=N&state_port=N\], ur:HOST"
+
 
 def test_techman_specs() -> None:
     robot = make_robot("tm:192.168.10.2")
@@ -16,7 +18,36 @@ def test_techman_specs() -> None:
     assert (robot.host, robot.port, robot.state_port) == ("192.168.10.2", 5890, 5891)
     robot = make_robot("TM:arm.local:6000")
     assert isinstance(robot, TechmanRobot)
-    assert (robot.host, robot.port) == ("arm.local", 6000)
+    assert (robot.host, robot.port, robot.state_port) == ("arm.local", 6000, 5891)
+
+
+def test_techman_spec_sets_both_ports() -> None:
+    robot = make_robot("tm:127.0.0.1?listen_port=6001&state_port=6002")
+    assert isinstance(robot, TechmanRobot)
+    assert (robot.host, robot.port, robot.state_port) == ("127.0.0.1", 6001, 6002)
+    robot = make_robot("tm:10.0.0.9?state_port=7000")
+    assert (robot.port, robot.state_port) == (5890, 7000)
+    robot = make_robot("tm:10.0.0.9:6000?state_port=7000&safety=degraded")
+    assert (robot.port, robot.state_port, robot.degraded_safety) == (6000, 7000, True)
+
+
+@pytest.mark.parametrize(
+    ("spec", "why"),
+    [
+        ("tm:h?listen_port=0", "bad port '0'"),
+        ("tm:h?state_port=70000", "bad port '70000'"),
+        ("tm:h?state_port=x", "bad port 'x'"),
+        ("tm:h?state_port=", "no value for option 'state_port'"),
+        ("tm:h?listen_port=1&listen_port=2", "option 'listen_port' twice"),
+        ("tm:h:6000?listen_port=6001", "Listen Node port twice"),
+        ("tm:h?listen_port=5891", "port 5891 for both"),
+        ("tm:h?port=5890", "unknown option 'port=5890'"),
+    ],
+)
+def test_bad_techman_ports_are_one_line(spec: str, why: str) -> None:
+    with pytest.raises(ValueError, match="valid forms") as info:
+        make_robot(spec)
+    assert why in str(info.value) and "\n" not in str(info.value)
 
 
 def test_ur_spec_builds_without_touching_the_network() -> None:
@@ -60,7 +91,7 @@ def test_sim_spec() -> None:
     ],
 )
 def test_bad_specs_list_the_valid_forms(spec: str) -> None:
-    with pytest.raises(ValueError, match=r"valid forms: sim, tm:HOST\[:PORT\], ur:HOST") as info:
+    with pytest.raises(ValueError, match=VALID_FORMS) as info:
         make_robot(spec)
     assert "\n" not in str(info.value)
 

@@ -11,6 +11,8 @@ import pytest
 
 from wovenskin.robots.base import JointLimits, Pose, RobotError
 from wovenskin.robots.techman import FakeListenNode, TechmanRobot
+from wovenskin.robots.techman.ethernet_slave import SvrMode, state_packet
+from wovenskin.robots.techman.protocol import Packet
 
 LIMITS = JointLimits(np.full(6, -np.pi), np.full(6, np.pi), np.full(6, np.pi))
 
@@ -21,7 +23,7 @@ def free_port() -> int:
         return sock.getsockname()[1]
 
 
-def wait_until(condition, timeout: float = 1.0) -> bool:
+def wait_until(condition, timeout: float = 5.0) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if condition():
@@ -74,9 +76,9 @@ def test_velocity_session_start_stream_stop(robot: TechmanRobot, fake: FakeListe
     assert robot.state().moving
     robot.stop()
     scripts = fake.scripts
-    assert scripts[0] == "ContinueVLine(200,250)"
+    assert scripts[0] == "ContinueVLine(300,2000)"  # the two timeouts, ms
     assert scripts[1] == "SetContinueVLine(0,50,0,0,0,10)"  # mm/s and deg/s
-    assert scripts.count("ContinueVLine(200,250)") == 1
+    assert scripts.count("ContinueVLine(300,2000)") == 1
     assert scripts[-2:] == ["StopContinueVmode()", "StopAndClearBuffer()"]
     assert not fake.velocity_mode
     assert wait_until(lambda: robot.state().tcp.position[1] - start[1] > 0.005)
@@ -120,6 +122,22 @@ def test_command_timeout_sends_zero_velocity(robot: TechmanRobot, fake: FakeList
     assert wait_until(lambda: fake.scripts[-1:] == ["SetContinueVLine(0,0,0,0,0,0)"])
     assert robot.watchdog_stops == 1
     np.testing.assert_allclose(fake.command_velocity, 0.0)
+
+
+def test_idle_velocity_mode_is_kept_alive(robot: TechmanRobot, fake: FakeListenNode) -> None:
+    """Between gestures the client keeps re-sending zero velocity, so the controller's 2 s
+    stop timeout never ends the mode and the next gesture's first command is accepted."""
+    robot.send_twist(np.array([0.0, 0.02, 0, 0, 0, 0]))
+    deadline = time.monotonic() + 2.6  # longer than the controller's stop timeout
+    while time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert robot.keepalives >= 5
+    robot.send_twist(np.array([0.0, -0.02, 0, 0, 0, 0]))
+    time.sleep(0.05)
+    robot.send_twist(np.zeros(6))
+    assert fake.velocity_mode and fake.velocity_mode_exits == []
+    assert fake.velocity_mode_entries == robot.velocity_mode_entries == 1
+    assert fake.script_errors == [] and fake.violations == []
 
 
 def test_disconnect_leaves_velocity_mode(fake: FakeListenNode) -> None:
@@ -169,13 +187,23 @@ def test_robot_fault_is_reported_and_blocks_motion(
         robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
 
 
-def test_rejected_stream_script_raises_next_tick(robot: TechmanRobot, fake: FakeListenNode) -> None:
+def test_a_lost_velocity_mode_is_one_error_then_re_entered(
+    robot: TechmanRobot, fake: FakeListenNode
+) -> None:
     robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
-    fake.velocity_mode = False  # the robot left velocity mode on its own
-    robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
-    time.sleep(0.05)
-    with pytest.raises(RobotError, match="rejected SetContinueVLine"):
+    with fake._lock:
+        fake._end_velocity_mode("test: the controller left velocity mode on its own")
+    robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))  # streamed: refused
+    assert wait_until(lambda: not robot.in_velocity_mode)  # keep-alives stop at once
+    with pytest.raises(RobotError, match="refused SetContinueVLine") as info:
         robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
+    assert "no longer in velocity mode" in str(info.value) and "\n" not in str(info.value)
+    refused = len(fake.script_errors)
+    time.sleep(0.3)  # no loop of refused keep-alives meanwhile
+    assert len(fake.script_errors) == refused
+    robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))  # the next command re-enters cleanly
+    assert fake.velocity_mode and robot.velocity_mode_entries == fake.velocity_mode_entries == 2
+    assert robot.velocity_refusals == refused
 
 
 def test_move_to_joints_runs_until_the_tag_is_reached(
@@ -184,7 +212,7 @@ def test_move_to_joints_runs_until_the_tag_is_reached(
     robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
     target = np.deg2rad([10, -5, 0, 0, 0, 0])
     robot.move_to_joints(target, speed_fraction=0.5)
-    assert fake.scripts[-3] == "StopContinueVmode()"
+    assert "StopContinueVmode()" in fake.scripts[-4:-2]
     assert fake.scripts[-2] == 'PTP("JPP",10,-5,0,0,0,0,50,200,0,false)'
     assert fake.scripts[-1] == "QueueTag(1)"
     assert robot.state().moving
@@ -222,13 +250,161 @@ def test_stop_cancels_a_move(robot: TechmanRobot, fake: FakeListenNode) -> None:
     robot.move_to_joints(np.deg2rad([90, 0, 0, 0, 0, 0]), speed_fraction=0.1)
     time.sleep(0.05)
     robot.stop()
-    q_after = robot.state().q.copy()
-    time.sleep(0.1)
+    q_stopped = fake.q_deg.copy()
+    assert wait_until(lambda: np.allclose(np.rad2deg(robot.state().q), q_stopped, atol=1e-4))
     assert not robot.state().moving
-    assert abs(q_after[0]) < np.deg2rad(90)
-    np.testing.assert_allclose(fake.q_deg, np.rad2deg(robot.state().q), atol=1e-6)
+    assert abs(q_stopped[0]) < 90
 
 
 def test_default_limits_are_the_tm5_900() -> None:
     tm5 = pytest.importorskip("wovenskin.robots.sim.tm5_900")
     assert TechmanRobot("127.0.0.1").joint_limits() is tm5.JOINT_LIMITS
+
+
+# -- the controller as Techman's material describes it ---------------------------------------
+
+
+def test_the_enter_node_message_is_not_an_error(robot: TechmanRobot, fake: FakeListenNode) -> None:
+    assert wait_until(lambda: robot.listen_node_name == "Listen1")
+    robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
+    robot.send_twist(np.zeros(6))
+    assert robot.state().fault is None and fake.violations == []
+
+
+def test_the_flow_re_entering_the_node_ends_velocity_mode_quietly(
+    robot: TechmanRobot, fake: FakeListenNode
+) -> None:
+    robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
+    fake.enter_listen_node()  # the flow left and came back: the controller's mode is gone
+    assert wait_until(lambda: not robot.in_velocity_mode)
+    robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))  # re-entered, no error
+    assert fake.velocity_mode and fake.velocity_mode_entries == 2
+    assert fake.script_errors == []
+
+
+@pytest.mark.parametrize("mode", [SvrMode.BINARY, SvrMode.JSON])
+@pytest.mark.parametrize("lowercase", [True, False])
+def test_both_state_modes_and_checksum_cases(mode: SvrMode, lowercase: bool) -> None:
+    with FakeListenNode(state_mode=mode, lowercase_checksums=lowercase) as fake:
+        arm = TechmanRobot("127.0.0.1", fake.listen_port, fake.state_port, limits=LIMITS)
+        arm.connect()
+        try:
+            arm.send_twist(np.array([0.0, 0.0, 0.02, 0.0, 0.0, 0.0]))
+            assert wait_until(lambda: arm.state().tcp_twist[2] > 0.019)  # TCP_Speed, m/s
+            assert arm.state().tcp_speed == pytest.approx(0.02, abs=1e-4)
+        finally:
+            arm.disconnect()
+        assert arm.bad_state_frames == 0 and fake.violations == []
+
+
+def test_a_missing_velocity_licence_is_named() -> None:
+    with FakeListenNode(velocity_licence=False) as fake:
+        arm = TechmanRobot("127.0.0.1", fake.listen_port, fake.state_port, limits=LIMITS)
+        arm.connect()
+        try:
+            for _ in range(2):  # every attempt: the same one line, no motion
+                with pytest.raises(RobotError, match="velocity-mode licence") as info:
+                    arm.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
+                assert "ContinueVLine" in str(info.value) and "\n" not in str(info.value)
+        finally:
+            arm.disconnect()
+        assert fake.velocity_commands == [] and arm.velocity_refusals == 2
+
+
+def test_a_flow_outside_the_listen_node_is_named(robot: TechmanRobot, fake: FakeListenNode) -> None:
+    fake.leave_listen_node()
+    with pytest.raises(RobotError, match=r"not in a Listen Node \(CPERR F1\)"):
+        robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
+    assert fake.velocity_commands == []
+
+
+def test_connect_needs_the_flow_in_the_listen_node(fake: FakeListenNode) -> None:
+    fake.leave_listen_node()
+    arm = TechmanRobot("127.0.0.1", fake.listen_port, fake.state_port, limits=LIMITS)
+    with pytest.raises(RobotError, match="not in a Listen Node"):
+        arm.connect()
+    assert not arm.connected
+
+
+class Junk:
+    """A stand-in for a state packet whose bytes on the wire are ``raw``."""
+
+    def __init__(self, raw: bytes) -> None:
+        self.raw = raw
+
+    def encode(self, lowercase: bool = False) -> bytes:
+        return self.raw
+
+
+def nan_frame(fake: FakeListenNode):
+    items = FakeListenNode.state_items(fake)
+    items["Joint_Angle"] = [0.0, float("nan"), 0.0, 0.0, 0.0, 0.0]
+    return state_packet("1", items, SvrMode.BINARY)
+
+
+@pytest.mark.parametrize(
+    ("frame", "words"),
+    [
+        (nan_frame, "Joint_Angle"),
+        (lambda f: Packet("TMSVR", b'1,3,[{"Item":"Robot_Error","Value":"yes"}]'), "Robot_Error"),
+        (lambda f: Packet("TMSVR", b"1,1,\x0b\x00Joint_Angle\x18\x00\x00"), "ends inside"),
+        (lambda f: Junk(b"\x00\xff garbage without a packet"), "stray bytes"),
+        (lambda f: Packet("TMSVR", b"1,2,Joint_Angle=1"), "string mode"),
+    ],
+)
+def test_bad_state_frames_are_one_line_faults_and_no_motion(
+    robot: TechmanRobot, fake: FakeListenNode, frame, words: str
+) -> None:
+    robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
+    fake.state_frame = lambda: frame(fake)  # from now on every pushed frame is bad
+    assert wait_until(lambda: robot.state().fault is not None)
+    fault = robot.state().fault
+    assert "no valid state" in fault and words in fault and "\n" not in fault
+    assert robot.bad_state_frames > 0
+    sent = len(fake.velocity_commands)
+    with pytest.raises(RobotError, match="no valid state"):
+        robot.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
+    assert len(fake.velocity_commands) == sent  # nothing was sent
+
+
+def test_connect_names_a_state_table_that_lacks_items(fake: FakeListenNode) -> None:
+    def without_speed():
+        items = FakeListenNode.state_items(fake)
+        del items["TCP_Speed"]
+        return state_packet("1", items, SvrMode.BINARY)
+
+    fake.state_frame = without_speed
+    arm = TechmanRobot("127.0.0.1", fake.listen_port, fake.state_port, limits=LIMITS)
+    with pytest.raises(RobotError, match="lacks TCP_Speed") as info:
+        arm.connect()
+    assert "\n" not in str(info.value)
+
+
+def test_a_stalled_client_re_enters_velocity_mode_cleanly(fake: FakeListenNode) -> None:
+    """If no velocity went out for half the controller's stop timeout (a stalled host), the
+    client stops trusting the mode: the next twist leaves it and enters it afresh."""
+    offset = [0.0]
+    arm = TechmanRobot(
+        "127.0.0.1",
+        fake.listen_port,
+        fake.state_port,
+        limits=LIMITS,
+        clock=lambda: time.monotonic() + offset[0],
+    )
+    arm.connect()
+    try:
+        arm.send_twist(np.zeros(6))
+        offset[0] += 1.5  # as if the process had stalled for 1.5 s
+        assert wait_until(lambda: not arm.in_velocity_mode and arm.state().fault is None)
+        arm.send_twist(np.array([0.01, 0, 0, 0, 0, 0]))
+        assert arm.velocity_mode_entries == 2 and fake.velocity_mode_entries == 2
+        assert fake.script_errors == []
+        assert wait_until(lambda: fake.scripts[-1] == "SetContinueVLine(10,0,0,0,0,0)")
+        assert fake.scripts[-3:-1] == ["StopContinueVmode()", "ContinueVLine(300,2000)"]
+    finally:
+        arm.disconnect()
+
+
+def test_the_command_timeout_must_beat_the_controllers(fake: FakeListenNode) -> None:
+    with pytest.raises(ValueError, match="zero-velocity timeout"):
+        TechmanRobot("127.0.0.1", command_timeout_s=0.5)

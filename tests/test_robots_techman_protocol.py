@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from wovenskin.robots.base import Pose
 from wovenskin.robots.techman.protocol import (
     CommError,
+    NodeEntered,
     Packet,
     PacketError,
     PacketParser,
@@ -21,11 +22,10 @@ from wovenskin.robots.techman.protocol import (
     format_number,
     parse_comm_error,
     parse_script_reply,
-    parse_state,
+    parse_tmsct,
     pose_from_wire,
     pose_to_wire,
     script_packet,
-    state_packet,
 )
 
 # Packets as printed in Techman's Listen Node documentation.
@@ -39,6 +39,26 @@ VECTORS = [
 def test_known_packets_encode_and_decode(raw: bytes, packet: Packet) -> None:
     assert packet.encode() == raw
     assert decode_packet(raw) == packet
+
+
+def test_lower_case_checksums_are_read_and_can_be_written() -> None:
+    # Techman's ROS driver formats the checksum with std::hex: lower-case digits.
+    assert decode_packet(b"$TMSCT,4,1,OK,*5c\r\n") == Packet("TMSCT", "1,OK")
+    assert Packet("TMSCT", "1,OK").encode(lowercase=True) == b"$TMSCT,4,1,OK,*5c\r\n"
+    assert encode_packet("TMSTA", "00", lowercase=True) == b"$TMSTA,2,00,*41\r\n"
+    wrong = b"$TMSCT,4,1,OK,*5d\r\n"
+    with pytest.raises(PacketError, match="checksum 5D, computed 5C"):
+        decode_packet(wrong)
+
+
+def test_binary_data_is_framed_by_length_and_kept_as_bytes() -> None:
+    payload = b"7,1,\x0b\x00Joint_Angle\x18\x00" + bytes(range(200, 224))
+    raw = encode_packet("TMSVR", payload)
+    assert raw.startswith(b"$TMSVR,%d," % len(payload))
+    packet = decode_packet(raw)
+    assert packet.payload == payload
+    with pytest.raises(PacketError, match="not text"):
+        _ = packet.data
 
 
 def test_checksum_is_xor_of_bytes() -> None:
@@ -88,7 +108,7 @@ def corrupt_cases() -> list[tuple[bytes, CommError, str]]:
     flipped = good[:-4] + (b"00" if good[-4:-2] != b"00" else b"01") + b"\r\n"
     return [
         (flipped, CommError.CHECKSUM, "checksum"),
-        (b"$TMSCT,4,1,OK,*5c\r\n", CommError.PACKET, "trailer"),
+        (b"$TMSCT,4,1,OK,*5g\r\n", CommError.PACKET, "trailer"),
         (good.replace(b",22,", b",21,"), CommError.PACKET, "LENGTH 21"),
         (good.replace(b",22,", b",23,"), CommError.PACKET, "LENGTH 23"),
         (good.replace(b",22,", b",2x,"), CommError.PACKET, "not a number"),
@@ -130,12 +150,32 @@ def test_encode_rejects_unknown_header() -> None:
 
 def test_script_replies() -> None:
     assert parse_script_reply("3,OK") == ScriptReply("3", True)
+    assert parse_script_reply("3,OK;2") == ScriptReply("3", True, (2,))  # OK with a warning
     assert parse_script_reply("9,ERROR;1;3") == ScriptReply("9", False, (1, 3))
     assert ScriptReply("9", False, (1, 3)).to_packet().data == "9,ERROR;1;3"
     with pytest.raises(PacketError):
         parse_script_reply("9,MAYBE")
     with pytest.raises(PacketError):
         parse_script_reply("OK")
+
+
+def test_the_enter_node_message_is_not_a_script_reply() -> None:
+    # The flow entering the Listen Node sends TMSCT data "0,<node name>".
+    assert parse_tmsct("0,Listen1") == NodeEntered("Listen1")
+    assert NodeEntered("Listen1").to_packet() == Packet("TMSCT", "0,Listen1")
+    assert parse_tmsct("0,OK") == ScriptReply("0", True)  # an answer to a script with id 0
+    assert parse_tmsct("12,ERROR;1") == ScriptReply("12", False, (1,))
+    with pytest.raises(PacketError, match="no node name"):
+        parse_tmsct("0,")
+    with pytest.raises(PacketError, match="neither OK nor ERROR"):
+        parse_tmsct("5,Listen1")
+
+
+def test_comm_errors_explain_themselves_in_one_line() -> None:
+    for code in CommError:
+        assert "\n" not in code.explain() and code.explain()
+    assert "Listen Node" in CommError.NOT_IN_LISTEN_NODE.explain()
+    assert "F1" in CommError.NOT_IN_LISTEN_NODE.explain()
 
 
 def test_script_packet_and_comm_errors() -> None:
@@ -154,16 +194,6 @@ def test_call_formats_script_arguments() -> None:
     assert format_number(1e-9) == "0"
     assert format_number(-12.3456) == "-12.346"
     assert "e" not in format_number(1e-5, decimals=6)
-
-
-def test_state_packets_round_trip() -> None:
-    packet = state_packet("12", {"Joint_Angle": [1, 2, 3, 4, 5, 6], "Robot_Error": False})
-    items = parse_state(decode_packet(packet.encode()).data)
-    assert items == {"Joint_Angle": [1, 2, 3, 4, 5, 6], "Robot_Error": False}
-    with pytest.raises(PacketError, match="JSON"):
-        parse_state("12,2,Joint_Angle")
-    with pytest.raises(PacketError, match="item list"):
-        parse_state("12,3,{not json")
 
 
 def test_wire_pose_uses_fixed_axis_xyz_degrees() -> None:

@@ -1,6 +1,7 @@
 """Robot specs: parsed and validated here, and nowhere else, then built by :func:`make_robot`.
 
-A spec names a backend and its address: ``sim``, ``tm:HOST[:PORT]`` or
+A spec names a backend and its address: ``sim``, ``tm:HOST[:PORT]`` (ports also as
+``tm:HOST?listen_port=5890&state_port=5891``) or
 ``ur:HOST[?model=ur5e]`` (the UR model: ``ur3e``, ``ur5e``, ``ur10e``, ``ur16e``). Options
 follow a ``?``, joined by ``&``. Every kind also takes ``safety=degraded``: the user's
 opt-in to run an arm whose declaration lacks what the safety layer's full checks need (see
@@ -23,7 +24,7 @@ from typing import Any
 
 from wovenskin.robots.base import Robot
 
-VALID_SPECS = "sim, tm:HOST[:PORT], ur:HOST[?model=ur5e]"
+VALID_SPECS = "sim, tm:HOST[:PORT][?listen_port=N&state_port=N], ur:HOST[?model=ur5e]"
 SAFETY_MODES = ("full", "degraded")
 
 
@@ -98,12 +99,19 @@ def _build_sim(spec: RobotSpec) -> Robot:
 
 
 def _build_tm(spec: RobotSpec) -> Robot:
+    """``tm:HOST``: Listen Node 5890, Ethernet Slave 5891; ``tm:HOST:PORT`` sets the Listen
+    Node's port; ``?listen_port=N&state_port=N`` set either or both."""
     from wovenskin.robots.techman import TechmanRobot
+    from wovenskin.robots.techman.protocol import ETHERNET_SLAVE_PORT, LISTEN_NODE_PORT
 
     assert spec.host is not None
-    if spec.port is None:
-        return TechmanRobot(spec.host)
-    return TechmanRobot(spec.host, spec.port)
+    if spec.port is not None and "listen_port" in spec.options:
+        raise ValueError("gives the Listen Node port twice (HOST:PORT and listen_port=)")
+    listen = spec.options.get("listen_port", spec.port or LISTEN_NODE_PORT)
+    state = spec.options.get("state_port", ETHERNET_SLAVE_PORT)
+    if listen == state:
+        raise ValueError(f"uses port {listen} for both the Listen Node and the Ethernet Slave")
+    return TechmanRobot(spec.host, listen, state)
 
 
 def _build_ur(spec: RobotSpec) -> Robot:
@@ -115,7 +123,11 @@ def _build_ur(spec: RobotSpec) -> Robot:
 
 SPEC_FORMS: dict[str, SpecForm] = {
     "sim": SpecForm(_build_sim, address=False),
-    "tm": SpecForm(_build_tm, address=True),
+    "tm": SpecForm(
+        _build_tm,
+        address=True,
+        options={"listen_port": port_option, "state_port": port_option},
+    ),
     "ur": SpecForm(
         _build_ur,
         address=True,

@@ -2,18 +2,25 @@
 
 A packet is ``$HEADER,LENGTH,DATA,*CS\\r\\n``: ``HEADER`` names the packet kind (``TMSCT``
 script, ``TMSTA`` status, ``CPERR`` communication error, ``TMSVR`` Ethernet Slave data),
-``LENGTH`` is the byte length of ``DATA`` in UTF-8 as a decimal number, and ``CS`` is the
-XOR of every byte between ``$`` and ``*`` (exclusive), written as two uppercase hex digits.
-``DATA`` may itself hold commas, ``*`` and line breaks (a multi-line script), so packets
-are delimited by ``LENGTH``, never by searching for the trailer.
+``LENGTH`` is the byte length of ``DATA`` as a decimal number, and ``CS`` is the XOR of
+every byte between ``$`` and ``*`` (exclusive), written as two hex digits. Techman's manual
+prints the checksum in upper case, its own ROS driver writes it in lower case: both are
+read, and :func:`encode_packet` writes upper case unless asked otherwise. ``DATA`` is text
+(UTF-8) for scripts and status, but raw bytes for an Ethernet Slave frame in binary mode;
+it may hold commas, ``*`` and line breaks, so packets are delimited by ``LENGTH``, never
+by searching for the trailer.
 
-This module knows the byte format and the payload layouts the client and the fake robot
-use; it opens no sockets. Errors are :class:`PacketError` with a one-line message.
+A ``TMSCT`` packet from the robot is either the answer to a script (``ID,OK`` or
+``ID,ERROR;line;...``) or, with ID ``0``, the message the flow sends when it enters the
+Listen Node (``0,Listen1``: the node's name). :func:`parse_tmsct` tells them apart.
+
+This module knows the byte format and the Listen Node payloads; the Ethernet Slave data
+table is :mod:`.ethernet_slave`. It opens no sockets. Errors are :class:`PacketError`
+with a one-line message. Sources: docs/techman.md.
 """
 
 from __future__ import annotations
 
-import json
 import re
 import warnings
 from dataclasses import dataclass, field
@@ -31,7 +38,7 @@ HEADERS = frozenset({"TMSCT", "TMSTA", "CPERR", "TMSVR"})
 MAX_DATA_BYTES = 65536  # larger LENGTH fields are treated as corrupt
 _MAX_HEADER_CHARS = 8
 _MAX_LENGTH_DIGITS = 6
-_TRAILER = re.compile(rb",\*[0-9A-F]{2}\r\n")
+_TRAILER = re.compile(rb",\*[0-9A-Fa-f]{2}\r\n")
 
 
 class CommError(Enum):
@@ -42,11 +49,28 @@ class CommError(Enum):
     CHECKSUM = "02"
     HEADER = "03"
     PACKET_DATA = "04"  # the DATA field cannot be understood
-    NOT_IN_LISTEN_NODE = "F1"
+    NOT_IN_LISTEN_NODE = "F1"  # the flow is not (or no longer) in a Listen Node
 
     def describe(self) -> str:
         """A few words for a log line."""
         return self.name.lower().replace("_", " ")
+
+    def explain(self) -> str:
+        """What the code means to a user, one line (docs/techman.md lists them)."""
+        return _COMM_ERROR_MEANING[self]
+
+
+_COMM_ERROR_MEANING = {
+    CommError.NO_ERROR: "no error (CPERR 00)",
+    CommError.PACKET: "the controller could not frame a packet (CPERR 01: LENGTH or layout)",
+    CommError.CHECKSUM: "the controller found a wrong checksum (CPERR 02)",
+    CommError.HEADER: "the controller does not accept that packet header (CPERR 03)",
+    CommError.PACKET_DATA: "the controller could not read a packet's data (CPERR 04)",
+    CommError.NOT_IN_LISTEN_NODE: (
+        "the TMflow project is not in a Listen Node (CPERR F1): start the project and let "
+        "its flow reach the Listen Node"
+    ),
+}
 
 
 class PacketError(ValueError):
@@ -57,16 +81,30 @@ class PacketError(ValueError):
         self.code = code
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Packet:
-    """One packet: its header and its DATA field (decoded text)."""
+    """One packet: its header and its DATA field (``payload``: the bytes on the wire)."""
 
     header: str
-    data: str
+    payload: bytes
 
-    def encode(self) -> bytes:
-        """The packet's bytes on the wire."""
-        return encode_packet(self.header, self.data)
+    def __init__(self, header: str, data: str | bytes) -> None:
+        raw = data.encode("utf-8") if isinstance(data, str) else bytes(data)
+        object.__setattr__(self, "header", header)
+        object.__setattr__(self, "payload", raw)
+
+    @property
+    def data(self) -> str:
+        """DATA as text; raises :class:`PacketError` when it is not UTF-8 (binary frames)."""
+        try:
+            return self.payload.decode("utf-8")
+        except UnicodeDecodeError:
+            message = f"{self.header} packet data is not text"
+            raise PacketError(message, CommError.PACKET_DATA) from None
+
+    def encode(self, lowercase: bool = False) -> bytes:
+        """The packet's bytes on the wire (``lowercase``: the checksum's hex digits)."""
+        return encode_packet(self.header, self.payload, lowercase=lowercase)
 
 
 def checksum(body: bytes) -> int:
@@ -77,16 +115,21 @@ def checksum(body: bytes) -> int:
     return value
 
 
-def encode_packet(header: str, data: str) -> bytes:
-    """Build ``$HEADER,LENGTH,DATA,*CS\\r\\n``; raises :class:`PacketError` on a bad header."""
+def encode_packet(header: str, data: str | bytes, *, lowercase: bool = False) -> bytes:
+    """Build ``$HEADER,LENGTH,DATA,*CS\\r\\n``; raises :class:`PacketError` on a bad header.
+
+    ``data`` is text (sent as UTF-8) or raw bytes; ``lowercase`` writes the checksum as
+    Techman's ROS driver does (``*5c``) instead of the manual's ``*5C``.
+    """
     if header not in HEADERS:
         raise PacketError(f"unknown packet header {header!r}", CommError.HEADER)
-    payload = data.encode("utf-8")
+    payload = data.encode("utf-8") if isinstance(data, str) else bytes(data)
     if len(payload) > MAX_DATA_BYTES:
         raise PacketError(f"packet data of {len(payload)} bytes exceeds {MAX_DATA_BYTES}")
     body = header.encode("ascii") + b"," + str(len(payload)).encode("ascii") + b","
     body += payload + b","
-    return b"$" + body + b"*" + f"{checksum(body):02X}".encode("ascii") + b"\r\n"
+    digits = f"{checksum(body):02x}" if lowercase else f"{checksum(body):02X}"
+    return b"$" + body + b"*" + digits.encode("ascii") + b"\r\n"
 
 
 def decode_packet(raw: bytes) -> Packet:
@@ -203,11 +246,7 @@ class PacketParser:
             )
         if header not in HEADERS:
             return PacketError(f"unknown packet header {header!r}", CommError.HEADER)
-        try:
-            data = buf[data_start:data_end].decode("utf-8")
-        except UnicodeDecodeError:
-            return PacketError(f"{header} packet data is not UTF-8", CommError.PACKET_DATA)
-        return Packet(header, data)
+        return Packet(header, buf[data_start:data_end])
 
 
 # -- payload layouts -----------------------------------------------------------------------
@@ -222,7 +261,11 @@ def script_packet(script_id: str, script: str) -> Packet:
 
 @dataclass(frozen=True)
 class ScriptReply:
-    """The robot's answer to a ``TMSCT`` packet: ``ID,OK`` or ``ID,ERROR;line;line``."""
+    """The robot's answer to a ``TMSCT`` packet: ``ID,OK`` or ``ID,ERROR;line;line``.
+
+    ``lines`` are the script lines the answer names (1-based): the failing lines of an
+    ``ERROR``; an ``OK`` may name lines too (warnings), which are kept but not an error.
+    """
 
     script_id: str
     ok: bool
@@ -230,23 +273,44 @@ class ScriptReply:
 
     def to_packet(self) -> Packet:
         """The ``TMSCT`` packet carrying this reply."""
-        if self.ok:
-            return Packet("TMSCT", f"{self.script_id},OK")
         lines = "".join(f";{n}" for n in self.error_lines)
-        return Packet("TMSCT", f"{self.script_id},ERROR{lines}")
+        return Packet("TMSCT", f"{self.script_id},{'OK' if self.ok else 'ERROR'}{lines}")
+
+
+ENTER_NODE_ID = "0"  # the script ID of the message the flow sends on entering the node
+
+
+@dataclass(frozen=True)
+class NodeEntered:
+    """The flow entered a Listen Node: ``TMSCT`` data ``0,NAME`` (``NAME``: the node's name)."""
+
+    node: str
+
+    def to_packet(self) -> Packet:
+        """The ``TMSCT`` packet the controller sends for it."""
+        return Packet("TMSCT", f"{ENTER_NODE_ID},{self.node}")
 
 
 def parse_script_reply(data: str) -> ScriptReply:
     """Read a ``TMSCT`` reply's DATA; raises :class:`PacketError` when it is neither form."""
     script_id, sep, verdict = data.partition(",")
     if not sep or not script_id:
-        raise PacketError(f"script reply {data!r} has no id", CommError.PACKET_DATA)
+        raise PacketError(f"script reply {data[:60]!r} has no id", CommError.PACKET_DATA)
     word, *numbers = verdict.split(";")
-    if word == "OK":
-        return ScriptReply(script_id, True)
-    if word == "ERROR" and all(n.isdigit() for n in numbers):
-        return ScriptReply(script_id, False, tuple(int(n) for n in numbers))
-    raise PacketError(f"script reply {data!r} is neither OK nor ERROR", CommError.PACKET_DATA)
+    if word in ("OK", "ERROR") and all(n.strip().isdigit() for n in numbers):
+        return ScriptReply(script_id, word == "OK", tuple(int(n) for n in numbers))
+    message = f"script reply {data[:60]!r} is neither OK nor ERROR"
+    raise PacketError(message, CommError.PACKET_DATA)
+
+
+def parse_tmsct(data: str) -> ScriptReply | NodeEntered:
+    """Read a ``TMSCT`` packet from the robot: a script's answer or the enter-node message."""
+    script_id, sep, rest = data.partition(",")
+    if script_id == ENTER_NODE_ID and sep and rest.split(";")[0] not in ("OK", "ERROR"):
+        if not rest.strip() or not rest.isprintable():
+            raise PacketError(f"enter-node message {data[:60]!r} has no node name")
+        return NodeEntered(rest)
+    return parse_script_reply(data)
 
 
 def parse_comm_error(data: str) -> CommError:
@@ -291,33 +355,6 @@ def call(function: str, *args: float | int | str | bool) -> str:
         else:
             parts.append(format_number(float(arg)))
     return f"{function}({','.join(parts)})"
-
-
-# -- Ethernet Slave (TMSVR) state frames ----------------------------------------------------
-
-TMSVR_JSON_MODE = "3"
-
-
-def state_packet(transaction_id: str, items: dict[str, object]) -> Packet:
-    """A ``TMSVR`` packet in JSON mode: ``ID,3,[{"Item": name, "Value": value}, ...]``."""
-    content = json.dumps([{"Item": name, "Value": value} for name, value in items.items()])
-    return Packet("TMSVR", f"{transaction_id},{TMSVR_JSON_MODE},{content}")
-
-
-def parse_state(data: str) -> dict[str, object]:
-    """Read a JSON-mode ``TMSVR`` DATA field into ``{item: value}``."""
-    transaction_id, sep, rest = data.partition(",")
-    mode, sep2, content = rest.partition(",")
-    if not (sep and sep2 and transaction_id):
-        raise PacketError(f"TMSVR data {data[:40]!r} lacks ID,MODE,", CommError.PACKET_DATA)
-    if mode != TMSVR_JSON_MODE:
-        raise PacketError(f"TMSVR mode {mode!r} is not JSON ({TMSVR_JSON_MODE})")
-    try:
-        entries = json.loads(content)
-        return {str(entry["Item"]): entry["Value"] for entry in entries}
-    except (ValueError, TypeError, KeyError) as exc:
-        message = f"TMSVR content is not an item list: {exc}"
-        raise PacketError(message, CommError.PACKET_DATA) from None
 
 
 # -- units on the wire ---------------------------------------------------------------------
