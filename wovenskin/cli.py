@@ -1151,14 +1151,20 @@ def bench_control(
     streams: int = typer.Option(2, help="Simulated streams behind the latency figures."),
     stream_seconds: float = typer.Option(40.0, help="Length of each simulated stream."),
     ik_steps: int = typer.Option(1000, help="Timed IK steps."),
+    stops: bool = typer.Option(
+        True, "--stops/--no-stops", help="Measure stop times after release, STOP and watchdog."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
-    """IK step time, control-loop rate and jitter, first contact to first motion (sim)."""
+    """IK step time, control-loop rate and jitter, first contact to first motion, stop
+    times (sim). ``--loop-seconds 0 --streams 0`` measures only the IK and the stops."""
 
     from wovenskin.bench.control import run_control_benchmark
 
     with err_console.status("benchmarking the control loop..."):
-        result = run_control_benchmark(model, loop_seconds, streams, stream_seconds, ik_steps)
+        result = run_control_benchmark(
+            model, loop_seconds, streams, stream_seconds, ik_steps, stops=stops
+        )
     _show_bench(result, json_out)
 
 
