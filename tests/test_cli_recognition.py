@@ -122,7 +122,7 @@ def test_dataset_from_streams(tmp_path):
     assert len(ds) == 50 and ds.meta["kind"] == "streams"
     assert "2 recordings" in result.stdout
     again = invoke("dataset", "--out", out, "--streams", files[0], "--workers", "1")
-    one_line_error(again, "already holds a data set")
+    one_line_error(again, "already holds a data set; pass --overwrite to replace it")
 
 
 # --------------------------------------------------------------------------------- train

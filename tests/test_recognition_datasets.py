@@ -12,6 +12,7 @@ import pytest
 
 from tests.conftest import SHARED
 from wovenskin.gestures import CLASS_NAMES, INVALID
+from wovenskin.outputs import OutputExistsError
 from wovenskin.recognition.datasets import (
     GROUP_KEYS,
     CaptureNormalisation,
@@ -157,7 +158,8 @@ def test_a_smaller_set_is_a_prefix_of_a_larger_one(tmp_path, sim_set):
 
 def test_generation_refuses_to_overwrite_and_cleans_up(tmp_path, sim_sets):
     root, _ = sim_sets
-    with pytest.raises(DatasetError, match="already holds a data set"):
+    # every writer refuses an existing output the same way (wovenskin.outputs)
+    with pytest.raises(OutputExistsError, match="already holds a data set"):
         generate_sim_dataset(root / "w1", **TINY)
     stranger = tmp_path / "notes"
     stranger.mkdir()
@@ -347,7 +349,7 @@ def test_capture_normalisation():
 
 def test_bad_capture_files_give_one_line_errors(tmp_path):
     (tmp_path / "junk.npz").write_bytes(b"not a zip")
-    with pytest.raises(DatasetError, match="junk.npz: not an .npz file"):
+    with pytest.raises(DatasetError, match="junk.npz: not a wovenskin data file"):  # as everywhere
         build_dataset_from_captures(tmp_path / "ds", tmp_path / "junk.npz")
     write_captures(tmp_path / "caps.npz")
     with pytest.raises(DatasetError, match="stride"):

@@ -226,8 +226,8 @@ def write_bad(tmp_path: Path, kind: str) -> Path:
     ("kind", "words"),
     [
         ("missing", "no such file"),
-        ("text", "neither a labelled-stream .npz nor a .wsrec"),
-        ("captures", "labelled-captures"),
+        ("text", "not a wovenskin data file"),  # the same words as every other command
+        ("captures", "labelled captures"),
         ("nan", "NaN"),
         ("empty recording", "no frames"),
         ("cut header", "cut off inside its header"),

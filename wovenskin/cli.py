@@ -47,16 +47,21 @@ def _main(
 
 
 def user_errors(fn):
-    """Turn expected user errors into one red line and exit code 2."""
+    """Turn expected user errors into one red line and exit code 2.
+
+    An output that exists (:class:`~wovenskin.outputs.OutputExistsError`, raised by every
+    writer) is refused naming ``--overwrite``, the option each writing command has."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
+        from wovenskin.outputs import CLI_SWITCH, OutputExistsError
         from wovenskin.recording.formats import FormatError
 
         try:
             return fn(*args, **kwargs)
         except (FormatError, ValueError, FileNotFoundError, FileExistsError, OSError) as exc:
-            message = " ".join(str(exc).split()) or type(exc).__name__
+            text = exc.message(CLI_SWITCH) if isinstance(exc, OutputExistsError) else str(exc)
+            message = " ".join(text.split()) or type(exc).__name__
             err_console.print(f"[red]error:[/] {escape(message)}", soft_wrap=True, highlight=False)
             raise typer.Exit(2) from None
 
@@ -74,9 +79,14 @@ def view(
     ),
     smoothing_ms: float = typer.Option(100.0, help="Moving-average length in ms."),
     snapshot: Path = typer.Option(None, help="Save the last screen as an SVG file at exit."),
+    overwrite: bool = typer.Option(False, help="Replace an existing --snapshot file."),
 ) -> None:
     """Show a skin live in the terminal: heatmap, contacts, frame rate, error counters."""
+    from wovenskin.outputs import check_new_output
     from wovenskin.ui.view import run_view
+
+    if snapshot is not None:
+        check_new_output(snapshot, overwrite)  # refused now, not after the session
 
     result = run_view(
         skin,
@@ -112,14 +122,17 @@ def simulate(
     cols: int = typer.Option(10, help="Skin columns."),
     gestures: str = typer.Option("", help="Comma-separated gestures to draw from (default: all)."),
     invalid_fraction: float = typer.Option(0.25, help="Share of events that are invalid touches."),
+    overwrite: bool = typer.Option(False, help="Replace an existing file."),
 ) -> None:
     """Write a labelled stream of a simulated person on a simulated skin."""
     from wovenskin.gestures import check_name
+    from wovenskin.outputs import check_new_output
     from wovenskin.recording.formats import write_labelled_stream
     from wovenskin.sim.stream import simulate_stream
     from wovenskin.skin.layout import SkinLayout
 
     names = [check_name(g.strip()) for g in gestures.split(",") if g.strip()] or None
+    check_new_output(out, overwrite)  # before the simulation, not after it
     stream = simulate_stream(
         seconds,
         seed,
@@ -127,7 +140,7 @@ def simulate(
         gestures=names,
         invalid_fraction=invalid_fraction,
     )
-    write_labelled_stream(out, stream)
+    write_labelled_stream(out, stream, overwrite=overwrite)
     labels = list(stream.event_labels)
     console.print(
         f"wrote {out}: {len(stream.t)} frames ({seconds:g} s at {stream.sample_rate_hz:g} Hz), "
@@ -153,7 +166,10 @@ def record(
     notes: str = typer.Option("", help="Free notes kept in the recording."),
     overwrite: bool = typer.Option(False, help="Replace an existing file."),
 ) -> None:
-    """Guided recording: prompts each gesture with a countdown and labels every trial."""
+    """Guided recording: prompts each gesture with a countdown and labels every trial.
+
+    Ctrl-C ends the session early: what was recorded is kept and the exit code is 130.
+    """
     from wovenskin.gestures import GESTURE_NAMES, check_name
     from wovenskin.ui.record_session import RecordPlan, run_record_session
 
@@ -179,7 +195,15 @@ def record(
         overwrite=overwrite,
         console=console,
     )
-    console.print(str(summary))
+    console.print(str(summary), highlight=False, soft_wrap=True)
+    if summary.interrupted:  # a script must see that the session was cut short
+        err_console.print(
+            f"[yellow]interrupted:[/] the session was cut short by Ctrl-C; what was recorded "
+            f"is kept in {escape(str(out))}",
+            soft_wrap=True,
+            highlight=False,
+        )
+        raise typer.Exit(130)
 
 
 @app.command()
@@ -276,11 +300,16 @@ def replay(
 ) -> None:
     """Run calibration, conditioning, recogniser and arbiter on a stream; print the commands."""
     from wovenskin.recognition.commandlog import commands_table, format_command_log
-    from wovenskin.recognition.pipeline import load_recognizer, run_pipeline
+    from wovenskin.recognition.pipeline import load_recognizer, load_stream, run_pipeline
+    from wovenskin.recording.files import unknown_labels, unknown_labels_message
 
+    labelled = load_stream(stream)
+    unknown = unknown_labels(labelled.event_labels)
+    if unknown:  # replay only prints commands; eval-stream refuses to score such a stream
+        _warn(unknown_labels_message(str(stream), unknown))
     recognizer = load_recognizer(model, threads=threads)
     settings = _pipeline_settings(recognizer, every, dwell_ms, min_probability)
-    result = run_pipeline(stream, recognizer, settings, on_warning=_warn)
+    result = run_pipeline(labelled, recognizer, settings, on_warning=_warn)
     if json_out:
         print(format_command_log(result.commands), end="", flush=True)
     else:
@@ -317,7 +346,12 @@ def eval_stream(
         scores_table,
     )
     from wovenskin.recognition.pipeline import load_recognizer, load_stream, run_pipeline
+    from wovenskin.recording.files import unknown_labels, unknown_labels_message
 
+    for path in streams:  # every file checked before minutes of pipeline are spent
+        unknown = unknown_labels(load_stream(path).event_labels)
+        if unknown:  # no command could match them: scored, they would pass as misses
+            raise ValueError(f"{unknown_labels_message(str(path), unknown)}; not scored")
     recognizer = load_recognizer(model, threads=threads)
     settings = _pipeline_settings(recognizer, every, dwell_ms, min_probability)
     rows, details = [], []
@@ -545,11 +579,13 @@ def train(
     threads: int = typer.Option(
         1, help="Torch threads (one is fastest on a busy 2-core machine: measure)."
     ),
+    overwrite: bool = typer.Option(False, help="Replace a trained model already in --out."),
 ) -> None:
     """Train a gesture classifier (PyTorch) with early stopping, checkpoints and resume."""
     _require_torch("wovenskin train")
     from wovenskin.recognition.compare import (
         DEFAULT_EPOCHS,
+        RUNS_DIR,
         TrainOptions,
         TrainProgressDisplay,
         default_train_dir,
@@ -559,10 +595,13 @@ def train(
     if captures is not None:
         if data is not None:
             raise ValueError("give --data or --captures, not both")
+        out = out or RUNS_DIR / "models" / f"captures-{captures.stem}"
+        _check_checkpoint_dir(out, overwrite, resume)
         _train_on_captures(captures, out, model, epochs, seed, threads, resume)
         return
     model = model or "transformer"
     out = out or default_train_dir(model, split)
+    _check_checkpoint_dir(out, overwrite, resume)
     parameters = _json_object(hparams, "--hparams")
     ds = _open_or_build_dataset(data, console)
     options = TrainOptions(
@@ -588,6 +627,19 @@ def train(
         highlight=False,
         soft_wrap=True,
     )
+
+
+CHECKPOINT_FILES = ("model.pt", "model.onnx", "meta.json", "training_state.pt")
+
+
+def _check_checkpoint_dir(out: Path, overwrite: bool, resume: bool) -> None:
+    """Refuse to train over a model already in ``out`` unless resuming it or ``overwrite``."""
+    from wovenskin.outputs import OutputExistsError
+
+    if resume or overwrite or not out.is_dir():
+        return
+    if any((out / name).exists() for name in CHECKPOINT_FILES):
+        raise OutputExistsError(out, "a trained model (--resume continues it)")
 
 
 def _train_on_captures(

@@ -18,6 +18,7 @@ from typing import IO
 
 import numpy as np
 
+from wovenskin.outputs import open_new
 from wovenskin.robots.base import RobotState
 
 TRACE_KEYS = ("t", "gesture", "tcp", "quat", "tcp_speed", "q")
@@ -58,12 +59,7 @@ class TraceWriter:
             self.path: Path | None = None
         elif isinstance(target, str | os.PathLike):
             self.path = Path(target)
-            mode = "w" if overwrite else "x"
-            try:
-                self._stream = open(self.path, mode, encoding="utf-8")  # noqa: SIM115
-            except FileExistsError:
-                message = f"{self.path} exists; pass --overwrite to replace it"
-                raise FileExistsError(message) from None
+            self._stream = open_new(self.path, overwrite)
             self._owns = True
         else:
             self._stream = target

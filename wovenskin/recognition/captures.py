@@ -55,7 +55,7 @@ from wovenskin.recognition.checkpoint import CheckpointMeta, atomic_write_bytes
 from wovenskin.recognition.datasets import CaptureNormalisation
 from wovenskin.recognition.metrics import ClassificationMetrics, classification_metrics
 from wovenskin.recognition.windows import capture_window_ends, capture_windows
-from wovenskin.recording.formats import LabelledCaptures, read_labelled_captures
+from wovenskin.recording.formats import LabelledCaptures
 
 if TYPE_CHECKING:
     from wovenskin.recognition.onnx_runtime import OnnxRecognizer
@@ -347,9 +347,11 @@ def resample_frames(frames: np.ndarray, n: int) -> np.ndarray:
 
 def _read(path: str | Path) -> LabelledCaptures:
     """Read a labelled-captures file; every problem is a one-line ``ValueError``."""
+    from wovenskin.recording.files import read_captures
+
     if not Path(path).is_file():
         raise FileNotFoundError(f"{path}: no such captures file")
-    return read_labelled_captures(path)
+    return read_captures(path, "training or scoring on captures")
 
 
 def internal_validation(

@@ -60,6 +60,7 @@ from scipy.sparse.csgraph import connected_components
 
 from wovenskin import __version__
 from wovenskin.gestures import CLASS_NAMES, INVALID
+from wovenskin.outputs import OutputExistsError
 from wovenskin.recognition.stream_windows import characteristic_spans, sample_stream_windows
 from wovenskin.recognition.windows import (
     SOURCE_CODES,
@@ -72,13 +73,11 @@ from wovenskin.recognition.windows import (
     events_to_frames,
     sample_windows,
 )
+from wovenskin.recording.files import read_captures, read_stream
 from wovenskin.recording.formats import (
     LabelledCaptures,
     LabelledStream,
-    read_labelled_captures,
-    read_labelled_stream,
 )
-from wovenskin.recording.native import read_recording
 from wovenskin.signal.conditioner import condition_recording
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.sim.person import Person
@@ -403,7 +402,8 @@ def _json_default(value):
 
 
 def _check_target(out_dir: Path, overwrite: bool) -> None:
-    """Refuse to build over something that is not an empty directory or a data set."""
+    """Refuse to build over something that is not an empty directory or a data set, and
+    over a data set unless ``overwrite`` (:class:`~wovenskin.outputs.OutputExistsError`)."""
     if not out_dir.exists():
         return
     if not out_dir.is_dir():
@@ -413,7 +413,7 @@ def _check_target(out_dir: Path, overwrite: bool) -> None:
     if not (out_dir / "meta.json").exists():
         raise DatasetError(f"{out_dir} is a non-empty directory that is not a window data set")
     if not overwrite:
-        raise DatasetError(f"{out_dir} already holds a data set (pass overwrite=True to replace)")
+        raise OutputExistsError(out_dir, "a data set")
 
 
 def _replace_dir(partial: Path, out_dir: Path, overwrite: bool) -> None:
@@ -813,11 +813,9 @@ class _StreamJob:
 
 
 def load_stream(path: str | os.PathLike) -> LabelledStream:
-    """A labelled stream from a labelled-stream ``.npz`` or a native ``.wsrec`` recording."""
-    p = Path(path)
-    if p.suffix == ".wsrec":
-        return read_recording(p).to_labelled_stream()
-    return read_labelled_stream(p)
+    """A labelled stream from a labelled-stream ``.npz`` or a native ``.wsrec`` recording
+    (the kind decided by content: :func:`wovenskin.recording.files.read_stream`)."""
+    return read_stream(path, "a data set")
 
 
 def stream_identity(stream: LabelledStream) -> tuple[str, str]:
@@ -1071,7 +1069,7 @@ def build_dataset_from_captures(
     if stride < 1:
         raise DatasetError(f"stride must be >= 1, got {stride}")
     try:
-        captures = read_labelled_captures(path)
+        captures = read_captures(path, "a data set of captures")
     except ValueError as exc:
         raise DatasetError(_one_line(exc)) from exc
     norm = (normalisation or CaptureNormalisation()).resolved(captures)

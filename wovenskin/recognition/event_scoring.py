@@ -29,6 +29,9 @@ Definitions (``tolerance_s`` = 0.1 s by default):
   events with a known motion start is ``None`` when there are none.
 - ``invalid`` events are not detected or missed; ``invalid_acted`` counts those with any
   activation inside their window (all such activations are false activations).
+- Event labels must be wovenskin's 15 classes: a stream with any other label (a typo,
+  another project's gesture) is refused with a ``ValueError`` rather than scored, since
+  no command could ever match it and it would silently count as a miss.
 
 :func:`aggregate` pools several streams: counts and durations add up, latencies are pooled
 before taking the median (not a median of medians); so do motion latencies.
@@ -42,7 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wovenskin.gestures import INVALID
+from wovenskin.gestures import CLASS_NAMES, INVALID
 from wovenskin.recognition.commandlog import CommandLike, changes_only
 from wovenskin.recording.formats import LabelledStream
 
@@ -151,6 +154,12 @@ def _events(
     if (ends < starts).any():
         k = int(np.flatnonzero(ends < starts)[0])
         raise ValueError(f"event {k} ends ({ends[k]:g} s) before it starts ({starts[k]:g} s)")
+    unknown = sorted({label for label in labels if label not in CLASS_NAMES})
+    if unknown:  # no command can ever match them: scored, they would pass as plain misses
+        raise ValueError(
+            f"cannot score events labelled {', '.join(map(repr, unknown))}: not gestures "
+            f"wovenskin knows ({', '.join(CLASS_NAMES)})"
+        )
     return starts, ends, labels
 
 

@@ -33,7 +33,6 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -305,19 +304,15 @@ class PipelineResult:
 
 
 def load_stream(stream: LabelledStream | str | os.PathLike) -> LabelledStream:
-    """``stream`` itself, or the labelled stream read from a ``.npz`` or ``.wsrec`` path."""
+    """``stream`` itself, or the labelled stream read from a ``.npz`` or ``.wsrec`` path
+    (the kind decided by content: :func:`wovenskin.recording.files.read_stream`)."""
     if isinstance(stream, LabelledStream):
         return stream
-    path = Path(stream)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such file")
-    if path.suffix == ".wsrec":
-        from wovenskin.recording.native import read_recording
+    from wovenskin.recording.files import read_stream
 
-        return read_recording(path).to_labelled_stream()
-    from wovenskin.recording.formats import read_labelled_stream
-
-    return read_labelled_stream(path)
+    if not os.path.isfile(stream):
+        raise FileNotFoundError(f"{stream}: no such file")
+    return read_stream(stream, "the pipeline")
 
 
 def run_pipeline(

@@ -1,19 +1,27 @@
 """``wovenskin info`` and ``wovenskin convert``: describe and convert data files.
 
 Knows the three kinds of file wovenskin reads: labelled streams and labelled captures
-(``.npz``, FORMATS.md) and native recordings (``.wsrec``).  The kind is decided by content,
-not only by suffix, so a mis-named file is still described correctly.
+(``.npz``, FORMATS.md) and native recordings (``.wsrec``).  The kind is decided by
+:func:`wovenskin.recording.files.file_kind`, by content, so a mis-named file is still
+described correctly and a bad one gets the same message as from every other command.
 """
 
 from __future__ import annotations
 
-import zipfile
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
+from rich.markup import escape
 from rich.table import Table
 
+from wovenskin.outputs import check_new_output
+from wovenskin.recording.files import (
+    file_kind,
+    read_stream,
+    unknown_labels,
+    unknown_labels_message,
+)
 from wovenskin.recording.formats import (
     FormatError,
     read_labelled_captures,
@@ -21,25 +29,13 @@ from wovenskin.recording.formats import (
     write_labelled_stream,
 )
 from wovenskin.recording.native import (
+    LABEL_KIND_TRIAL,
     read_recording,
     recording_from_labelled_stream,
     write_recording,
 )
 
-
-def file_kind(path: Path) -> str:
-    """``"stream"``, ``"captures"`` or ``"recording"``; FormatError for anything else."""
-    path = Path(path)
-    if not path.exists():
-        raise FormatError(f"{path}: no such file")
-    if zipfile.is_zipfile(path):
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                keys = set(data.files)
-        except (OSError, ValueError, zipfile.BadZipFile) as exc:
-            raise FormatError(f"{path}: not a readable .npz file ({exc})") from None
-        return "captures" if "lengths" in keys else "stream"
-    return "recording"
+__all__ = ["convert_file", "describe_file", "file_kind"]
 
 
 def describe_file(path: Path) -> Table:
@@ -52,7 +48,7 @@ def describe_file(path: Path) -> Table:
     if kind == "stream":
         s = read_labelled_stream(path)
         _rows(table, s.frames, s.sample_rate_hz, float(s.t[-1] - s.t[0]) if len(s.t) else 0.0)
-        _label_rows(table, [str(x) for x in s.event_labels])
+        _label_rows(table, [str(x) for x in s.event_labels], str(path))
         if s.metadata:
             table.add_row("metadata", ", ".join(sorted(s.metadata))[:200])
     elif kind == "captures":
@@ -73,7 +69,8 @@ def describe_file(path: Path) -> Table:
             if rec.provenance.get(key):
                 table.add_row(key, str(rec.provenance[key]))
         table.add_row("calibrations", str(len(rec.calibrations)))
-        _label_rows(table, [lab.label for lab in rec.labels])
+        trials = [lab.label for lab in rec.labels if lab.kind == LABEL_KIND_TRIAL]
+        _label_rows(table, [lab.label for lab in rec.labels], str(path), trials)
         table.add_row("annotations", str(len(rec.annotations)))
         table.add_row("closed cleanly", "yes" if rec.clean_close else "[yellow]no[/]")
         for warning in rec.warnings:
@@ -90,32 +87,41 @@ def _rows(table: Table, frames: np.ndarray, rate: float, duration: float) -> Non
         table.add_row("values", f"min {np.nanmin(frames):.4g}, max {np.nanmax(frames):.4g}")
 
 
-def _label_rows(table: Table, labels: list[str]) -> None:
+def _label_rows(
+    table: Table, labels: list[str], where: str, events: list[str] | None = None
+) -> None:
+    """Label counts, and a warning row for ``events`` (default: all labels) that are not
+    gestures wovenskin knows (scoring refuses them)."""
     counts = Counter(labels)
     table.add_row("events", str(len(labels)))
     if counts:
         table.add_row("labels", ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+    unknown = unknown_labels(labels if events is None else events)
+    if unknown:
+        message = unknown_labels_message(where, unknown)
+        table.add_row("warning", f"[yellow]{escape(message)}[/]")
 
 
 def convert_file(src: Path, dst: Path, overwrite: bool = False) -> str:
-    """Convert a recording to a labelled stream or back; returns a one-line summary."""
+    """Convert a recording to a labelled stream or back; returns a one-line summary.
+
+    ``dst`` must end in ``.npz`` or ``.wsrec`` and not exist unless ``overwrite``
+    (:class:`~wovenskin.outputs.OutputExistsError`); ``src`` is read through
+    :func:`~wovenskin.recording.files.read_stream`, so labelled captures are refused there.
+    """
     src, dst = Path(src), Path(dst)
-    if dst.exists() and not overwrite:
-        raise FileExistsError(f"{dst} exists (use --overwrite to replace it)")
-    kind = file_kind(src)
+    if dst.suffix not in (".npz", ".wsrec"):
+        raise FormatError(f"{dst}: output must end in .npz or .wsrec")
+    check_new_output(dst, overwrite)
+    if dst.suffix == ".wsrec" and file_kind(src) == "recording":
+        raise FormatError(f"{src}: already a .wsrec recording; convert it to .npz (or copy it)")
+    stream = read_stream(src, "convert")
     if dst.suffix == ".npz":
-        if kind == "recording":
-            stream = read_recording(src).to_labelled_stream()
-        elif kind == "stream":
-            stream = read_labelled_stream(src)
-        else:
-            raise FormatError(f"{src}: labelled captures cannot become a stream")
-        write_labelled_stream(dst, stream)
+        write_labelled_stream(dst, stream, overwrite=overwrite)
         return f"wrote {dst}: {len(stream.t)} frames, {len(stream.event_labels)} events"
-    if dst.suffix == ".wsrec":
-        if kind != "stream":
-            raise FormatError(f"{src}: only a labelled stream converts to .wsrec")
-        stream = read_labelled_stream(src)
-        write_recording(dst, recording_from_labelled_stream(stream), overwrite=overwrite)
-        return f"wrote {dst}: {len(stream.t)} frames, {len(stream.event_labels)} labels"
-    raise FormatError(f"{dst}: output must end in .npz or .wsrec")
+    try:
+        recording = recording_from_labelled_stream(stream)
+    except ValueError as exc:
+        raise FormatError(f"{src}: {exc}") from None
+    write_recording(dst, recording, overwrite=overwrite)
+    return f"wrote {dst}: {len(stream.t)} frames, {len(stream.event_labels)} labels"

@@ -23,7 +23,9 @@ from __future__ import annotations
 
 import getpass
 import json
+import math
 import os
+import re
 import shlex
 import socket
 import struct
@@ -40,11 +42,18 @@ from typing import Any
 import numpy as np
 
 from wovenskin import __version__
-from wovenskin.recording.formats import FormatError, LabelledStream
+from wovenskin.outputs import open_new
+from wovenskin.recording.formats import (
+    WSREC_MAGIC_PREFIX,
+    FormatError,
+    LabelledStream,
+    identify,
+    loads_json,
+)
 from wovenskin.skin.frames import SkinInfo
 
 FORMAT_VERSION = 1
-MAGIC_PREFIX = b"wovenskin.wsrec "
+MAGIC_PREFIX = WSREC_MAGIC_PREFIX
 MAGIC = MAGIC_PREFIX + str(FORMAT_VERSION).encode() + b"\n"
 SYNC = b"\xa7WR\x5e"
 MAX_PAYLOAD_BYTES = 1 << 28
@@ -55,6 +64,8 @@ _CRC = struct.Struct("<I")
 _FRAMES_HEAD = struct.Struct("<IHH")  # frame count, rows, cols
 _DOC_HEAD = struct.Struct("<I")  # JSON length
 _ARRAY_REF = "__wsrec_array__"
+_ARRAY_DTYPE = re.compile(r"[<>|=]?[biuf][1-9][0-9]?")  # plain numeric or boolean dtypes
+MAX_CHANNELS_PER_SIDE = 0xFFFF  # FRAMES store rows and cols as u16
 _MAX_FRAMES_PER_RECORD = 1024
 
 
@@ -132,6 +143,18 @@ class Recording:
         )
 
 
+def stored_skin_info(stream: LabelledStream) -> SkinInfo:
+    """The :class:`SkinInfo` a labelled stream's metadata keeps (an exported recording's),
+    else the defaults; ``ValueError`` (one line) when the stored one is unusable."""
+    stored = stream.metadata.get("info")
+    if stored is None:
+        return SkinInfo()
+    try:
+        return skin_info_from_document(stored)
+    except ValueError as exc:
+        raise ValueError(f"the stream's metadata 'info' is unusable: {exc}") from None
+
+
 def recording_from_labelled_stream(
     stream: LabelledStream, info: SkinInfo | None = None, provenance: dict | None = None
 ) -> Recording:
@@ -143,8 +166,7 @@ def recording_from_labelled_stream(
     frames = np.asarray(stream.frames, dtype=np.float32)
     n, rows, cols = frames.shape
     if info is None:
-        stored = stream.metadata.get("info")
-        info = SkinInfo.from_dict(stored) if isinstance(stored, dict) else SkinInfo()
+        info = stored_skin_info(stream)
     info = replace(info, rows=rows, cols=cols, sample_rate_hz=float(stream.sample_rate_hz))
     stored_provenance = stream.metadata.get("provenance")
     settings = stream.metadata.get("settings")
@@ -250,11 +272,7 @@ class RecordingWriter:
                 "settings": settings or {},
             }
         )
-        try:
-            self._file = open(self.path, "wb" if overwrite else "xb")  # noqa: SIM115
-        except FileExistsError:
-            message = f"{self.path} exists; pass overwrite=True to replace it"
-            raise FileExistsError(message) from None
+        self._file = open_new(self.path, overwrite, binary=True)
         self._file.write(MAGIC)
         self._write_record(RecordType.HEADER, header)
         self._file.flush()
@@ -484,7 +502,10 @@ def encode_document(document: Any) -> bytes:
 
 
 def decode_document(payload: bytes | memoryview) -> Any:
-    """Inverse of :func:`encode_document`; ``ValueError`` if the payload is malformed."""
+    """Inverse of :func:`encode_document`; ``ValueError`` (one line) if the payload is
+    malformed: bad JSON, nesting past :data:`~wovenskin.recording.formats.MAX_JSON_DEPTH`,
+    an envelope or array spec of the wrong type, a dtype that is not plain numeric, a shape
+    whose bytes the record does not hold, or a reference to an array that does not exist."""
     payload = memoryview(payload)
     if len(payload) < _DOC_HEAD.size:
         raise ValueError("document shorter than its length field")
@@ -492,28 +513,51 @@ def decode_document(payload: bytes | memoryview) -> Any:
     end = _DOC_HEAD.size + text_length
     if end > len(payload):
         raise ValueError("document JSON runs past the record")
-    envelope = json.loads(bytes(payload[_DOC_HEAD.size : end]))
+    envelope = loads_json(bytes(payload[_DOC_HEAD.size : end]), "document JSON")
+    if not isinstance(envelope, dict) or not isinstance(envelope.get("arrays"), list):
+        raise ValueError("document is not an object with an 'arrays' list")
+    if "doc" not in envelope:
+        raise ValueError("document has no 'doc'")
     arrays = []
     for spec in envelope["arrays"]:
-        dtype = np.dtype(spec["dtype"])
-        shape = tuple(int(s) for s in spec["shape"])
-        if dtype.kind not in "biuf" or min(shape, default=0) < 0:
-            raise ValueError(f"bad array {dtype} {shape}")
-        count = int(np.prod(shape))
-        if end + dtype.itemsize * count > len(payload):
-            raise ValueError("array bytes run past the record")
-        array = np.frombuffer(payload, dtype, count, end).reshape(shape)
+        dtype, shape = _array_spec(spec)
+        nbytes = dtype.itemsize * math.prod(shape)
+        if end + nbytes > len(payload):
+            raise ValueError(f"array {dtype} {shape} needs {nbytes} bytes the record does not hold")
+        array = np.frombuffer(payload, dtype, math.prod(shape), end).reshape(shape)
         arrays.append(array.astype(dtype.newbyteorder("="), copy=True))
-        end += dtype.itemsize * count
+        end += nbytes
     if end != len(payload):
         raise ValueError(f"{len(payload) - end} stray bytes after the document")
     return _resolve_arrays(envelope["doc"], arrays)
 
 
+def _array_spec(spec: Any) -> tuple[np.dtype, tuple[int, ...]]:
+    """The dtype and shape of one ``{"dtype", "shape"}`` spec, checked before any use."""
+    if not isinstance(spec, dict):
+        raise ValueError("an array spec is not an object")
+    text, shape = spec.get("dtype"), spec.get("shape")
+    if not isinstance(text, str) or not _ARRAY_DTYPE.fullmatch(text):
+        raise ValueError(f"array dtype {str(text)[:40]!r} is not a plain numeric dtype")
+    try:
+        dtype = np.dtype(text)
+    except TypeError:
+        raise ValueError(f"array dtype {text!r} is not a plain numeric dtype") from None
+    if not isinstance(shape, list) or len(shape) > 32:
+        raise ValueError("array shape is not a list of at most 32 sizes")
+    if not all(type(n) is int and n >= 0 for n in shape):
+        raise ValueError(f"array shape {str(shape)[:60]} is not a list of sizes >= 0")
+    return dtype, tuple(shape)
+
+
 def _resolve_arrays(value: Any, arrays: list[np.ndarray]) -> Any:
     if isinstance(value, dict):
         if len(value) == 1 and _ARRAY_REF in value:
-            return arrays[value[_ARRAY_REF]]
+            index = value[_ARRAY_REF]
+            if type(index) is not int or not 0 <= index < len(arrays):
+                count = len(arrays)
+                raise ValueError(f"reference to array {str(index)[:20]}, but there are {count}")
+            return arrays[index]
         return {k: _resolve_arrays(v, arrays) for k, v in value.items()}
     if isinstance(value, list):
         return [_resolve_arrays(v, arrays) for v in value]
@@ -530,10 +574,10 @@ def read_recording(path: str | os.PathLike) -> Recording:
     :class:`FormatError` only for files that are not recordings or lack a readable header.
     """
     where = str(path)
+    if identify(path) != "recording":
+        raise FormatError(f"{where}: is an .npz file, not a .wsrec recording")
     try:
         data = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise FormatError(f"{where}: no such file") from None
     except OSError as exc:
         raise FormatError(f"{where}: cannot read ({exc.strerror or exc})") from None
     version, pos = _read_magic(where, data)
@@ -544,18 +588,16 @@ def read_recording(path: str | os.PathLike) -> Recording:
         raise FormatError(f"{where}: first record is not a valid HEADER")
     try:
         header = decode_document(first[1])
-        info = SkinInfo.from_dict(header["info"])
-    except (ValueError, KeyError, TypeError) as exc:
+        if not isinstance(header, dict):
+            raise ValueError("it is not an object")
+        info = skin_info_from_document(header.get("info"))
+        provenance, settings = (_optional_object(header, key) for key in ("provenance", "settings"))
+    except ValueError as exc:
         raise FormatError(f"{where}: unreadable HEADER ({exc})") from None
-    if not (info.rows >= 1 and info.cols >= 1 and info.sample_rate_hz > 0):
-        raise FormatError(
-            f"{where}: HEADER gives an impossible skin: {info.rows}x{info.cols} channels "
-            f"at {info.sample_rate_hz} Hz"
-        )
     recording = Recording(
         info=info,
-        provenance=dict(header.get("provenance") or {}),
-        settings=dict(header.get("settings") or {}),
+        provenance=provenance,
+        settings=settings,
         frames=np.zeros((0, info.rows, info.cols), np.float32),
         seq=np.zeros(0, np.int64),
         t=np.zeros(0, np.float64),
@@ -564,6 +606,48 @@ def read_recording(path: str | os.PathLike) -> Recording:
     )
     _read_body(data, first[2], recording)
     return recording
+
+
+def skin_info_from_document(value: Any) -> SkinInfo:
+    """A :class:`SkinInfo` from a stored ``info`` object, every field's type checked.
+
+    ``ValueError`` (one line) for anything a crafted file could put there: not an object,
+    a grid outside 1..65535 channels a side, a rate that is not a finite positive number,
+    text fields that are not text.  Unknown fields are ignored (a newer writer's)."""
+    if not isinstance(value, dict):
+        raise ValueError("'info' is not an object")
+    defaults = SkinInfo()
+    fields: dict[str, Any] = {}
+    for name in SkinInfo.__dataclass_fields__:
+        if name not in value:
+            continue
+        given, default = value[name], getattr(defaults, name)
+        if isinstance(default, str):
+            if not isinstance(given, str):
+                raise ValueError(f"info.{name} must be text, got {type(given).__name__}")
+        elif isinstance(default, int):
+            if type(given) is not int:
+                raise ValueError(f"info.{name} must be an integer, got {str(given)[:30]}")
+        elif type(given) not in (int, float) or not math.isfinite(given):
+            raise ValueError(f"info.{name} must be a finite number, got {str(given)[:30]}")
+        fields[name] = float(given) if isinstance(default, float) else given
+    info = SkinInfo(**fields)
+    sides_ok = all(1 <= n <= MAX_CHANNELS_PER_SIDE for n in (info.rows, info.cols))
+    if not (sides_ok and info.sample_rate_hz > 0):
+        raise ValueError(
+            f"an impossible skin: {info.rows}x{info.cols} channels at {info.sample_rate_hz} Hz"
+        )
+    return info
+
+
+def _optional_object(document: dict, key: str) -> dict:
+    """``document[key]`` when it is an object, ``{}`` when absent or null; else ValueError."""
+    value = document.get(key)
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise ValueError(f"'{key}' is not an object")
+    return dict(value)
 
 
 def _read_magic(where: str, data: bytes) -> tuple[int, int]:
@@ -599,25 +683,16 @@ def _read_body(data: bytes, pos: int, recording: Recording) -> None:
             if rtype == RecordType.FRAMES:
                 blocks.append(_decode_frames(payload, rows, cols))
             elif rtype == RecordType.CALIBRATION:
-                recording.calibrations.append(decode_document(payload))
+                recording.calibrations.append(_object_document(payload))
             elif rtype == RecordType.LABEL:
-                doc = decode_document(payload)
-                recording.labels.append(
-                    RecordedLabel(
-                        str(doc["label"]),
-                        float(doc["start_s"]),
-                        float(doc["end_s"]),
-                        str(doc.get("kind", LABEL_KIND_TRIAL)),
-                        dict(doc.get("extra") or {}),
-                    )
-                )
+                recording.labels.append(_label_from_document(_object_document(payload)))
             elif rtype == RecordType.ANNOTATION:
-                doc = decode_document(payload)
+                doc = _object_document(payload)
                 recording.annotations.append(
-                    Annotation(str(doc["stream"]), float(doc["t"]), doc.get("payload"))
+                    Annotation(_text(doc, "stream"), _finite(doc, "t"), doc.get("payload"))
                 )
             elif rtype == RecordType.FOOTER:
-                recording.footer = decode_document(payload)
+                recording.footer = _object_document(payload)
                 recording.clean_close = True
             elif rtype == RecordType.HEADER:
                 warnings.append(f"second HEADER at byte {offset} ignored")
@@ -635,6 +710,40 @@ def _read_body(data: bytes, pos: int, recording: Recording) -> None:
         recording.seq, recording.t, recording.device_t_us, recording.frames = (
             np.concatenate(parts) for parts in zip(*blocks, strict=True)
         )
+
+
+def _object_document(payload: memoryview) -> dict:
+    """A record's document, which must be a JSON object (ValueError otherwise)."""
+    doc = decode_document(payload)
+    if not isinstance(doc, dict):
+        raise ValueError("its document is not an object")
+    return doc
+
+
+def _text(doc: dict, key: str) -> str:
+    value = doc[key]
+    if not isinstance(value, str):
+        raise ValueError(f"'{key}' is not text")
+    return value
+
+
+def _finite(doc: dict, key: str) -> float:
+    value = doc[key]
+    if type(value) not in (int, float) or not math.isfinite(value):
+        raise ValueError(f"'{key}' is not a finite number")
+    return float(value)
+
+
+def _label_from_document(doc: dict) -> RecordedLabel:
+    """A LABEL record's label, its types and times checked (ValueError if bad)."""
+    start_s, end_s = _finite(doc, "start_s"), _finite(doc, "end_s")
+    if end_s < start_s:
+        raise ValueError(f"label ends at {end_s} before it starts at {start_s}")
+    kind = doc.get("kind", LABEL_KIND_TRIAL)
+    extra = doc.get("extra") or {}
+    if not isinstance(kind, str) or not isinstance(extra, dict):
+        raise ValueError("'kind' is not text or 'extra' is not an object")
+    return RecordedLabel(_text(doc, "label"), start_s, end_s, kind, dict(extra))
 
 
 def _decode_frames(payload: memoryview, rows: int, cols: int) -> tuple[np.ndarray, ...]:

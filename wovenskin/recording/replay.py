@@ -20,15 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
-from wovenskin.recording.formats import FormatError, read_labelled_stream
-from wovenskin.recording.native import LABEL_KIND_TRIAL, MAGIC_PREFIX, read_recording
+from wovenskin.recording.files import file_kind, read_stream
+from wovenskin.recording.formats import FormatError
+from wovenskin.recording.native import LABEL_KIND_TRIAL, read_recording, stored_skin_info
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 
 OPTIONS = ("speed", "loop", "start_s")
 FAST_BATCH = 256
 """Most frames one :meth:`ReplaySource.poll` returns at ``speed=0``."""
 
-_ZIP_MAGICS = (b"PK\x03\x04", b"PK\x05\x06")
 _COMMANDS = ("start", "stop", "recalibrate")
 
 
@@ -141,15 +141,9 @@ class ReplaySource:
     # -- internals
 
     def _load(self, path: Path) -> None:
-        try:
-            with open(path, "rb") as f:
-                head = f.read(len(MAGIC_PREFIX))
-        except FileNotFoundError:
-            raise FormatError(f"{path}: no such file") from None
-        except OSError as exc:
-            raise FormatError(f"{path}: cannot read ({exc.strerror or exc})") from None
         self._warnings: list[str] = []
-        if head.startswith(MAGIC_PREFIX):
+        kind = file_kind(path)
+        if kind == "recording":
             recording = read_recording(path)
             if len(recording.t) == 0:
                 raise FormatError(f"{path}: recording holds no frames to replay")
@@ -162,11 +156,12 @@ class ReplaySource:
                 if label.kind == LABEL_KIND_TRIAL
             ]
             self._warnings = list(recording.warnings)
-        elif head.startswith(_ZIP_MAGICS):
-            stream = read_labelled_stream(path)
-            stored = stream.metadata.get("info")
-            info = SkinInfo.from_dict(stored) if isinstance(stored, dict) else SkinInfo()
-            info = replace(info, sample_rate_hz=stream.sample_rate_hz)
+        else:
+            stream = read_stream(path, "replay")
+            try:
+                info = replace(stored_skin_info(stream), sample_rate_hz=stream.sample_rate_hz)
+            except ValueError as exc:
+                raise FormatError(f"{path}: {exc}") from None
             frames, t = stream.frames, stream.t
             seq = np.arange(len(t), dtype=np.int64)
             self._device_t_us = None
@@ -176,10 +171,6 @@ class ReplaySource:
                     stream.event_labels, stream.event_start_s, stream.event_end_s, strict=True
                 )
             ]
-        else:
-            raise FormatError(
-                f"{path}: cannot replay: neither a labelled-stream .npz nor a .wsrec recording"
-            )
         backwards = np.flatnonzero(~(np.diff(t) >= 0))
         if backwards.size:
             i = int(backwards[0]) + 1

@@ -6,7 +6,8 @@ calibration it used, and for each trial a label with the prompt window and the c
 window that the conditioning saw (first contact to last lift-off).  All timing runs on
 the stream clock, so a replayed or simulated source at any speed produces the same
 session.  Ctrl-C, a stalled or unplugged skin, or an exception still leave a readable
-recording: the writer flushes at least every second.
+recording: the writer flushes at least every second.  Ctrl-C is reported in
+:attr:`SessionSummary.interrupted`, so the command can exit non-zero (130).
 
 With the simulated skin (``--skin sim``) the simulated person performs each prompted
 gesture, which makes the whole flow testable without hardware.
@@ -76,6 +77,7 @@ class SessionSummary:
     frames: int
     trials: list[TrialResult] = field(default_factory=list)
     aborted: str = ""
+    interrupted: bool = False  # Ctrl-C cut the session short (``record`` exits 130)
 
     def __str__(self) -> str:
         missed = sum(t.contact_start_s is None for t in self.trials)
@@ -142,7 +144,8 @@ def run_record_session(
         with Live(console=console, auto_refresh=False) as live:
             _Session(live_skin, plan, writer, live, messages, perform, summary).run()
     except KeyboardInterrupt:
-        summary.aborted = "interrupted by the user"
+        summary.aborted = "interrupted by the user (Ctrl-C)"
+        summary.interrupted = True
     except _Abort as exc:
         summary.aborted = str(exc)
     finally:

@@ -1,0 +1,107 @@
+"""One reader decides what a data file is; every command asks it.
+
+wovenskin reads three kinds of file (``docs/recording-format.md``): a native ``.wsrec``
+recording, a labelled-stream ``.npz`` and a labelled-captures ``.npz``.  :func:`file_kind`
+decides which by content (never by suffix alone), and :func:`read_stream` /
+:func:`read_captures` / :func:`read_any` read through it, so ``info``, ``convert``,
+``replay``, ``eval-stream``, ``dataset``, ``train``, ``eval`` and ``run --skin replay:``
+report the same one-line :class:`~wovenskin.recording.formats.FormatError` for the same bad
+file (e.g. :data:`~wovenskin.recording.formats.NOT_OURS` for random bytes).
+
+:func:`unknown_labels` finds event labels that are none of wovenskin's gesture classes
+(``docs/gestures.md``): ``info`` flags them, scoring refuses them.
+"""
+
+from __future__ import annotations
+
+import os
+import zipfile
+from collections import Counter
+from collections.abc import Iterable
+from typing import Literal
+
+from wovenskin.gestures import CLASS_NAMES
+from wovenskin.recording.formats import (
+    FormatError,
+    LabelledCaptures,
+    LabelledStream,
+    identify,
+    read_labelled_captures,
+    read_labelled_stream,
+)
+from wovenskin.recording.native import Recording, read_recording
+
+FileKind = Literal["recording", "stream", "captures"]
+CAPTURES_ONLY_KEYS = ("lengths", "labels", "class_names", "groups")
+"""Members only a labelled-captures ``.npz`` has (FORMATS.md)."""
+
+
+def file_kind(path: str | os.PathLike) -> FileKind:
+    """``"recording"``, ``"stream"`` or ``"captures"``, by content; FormatError otherwise.
+
+    An ``.npz`` with any captures-only member (``lengths``, ``labels``, ...) is captures,
+    any other ``.npz`` a stream (its reader then names what is missing).  Only member names
+    are looked at: nothing is loaded.
+    """
+    if identify(path) == "recording":
+        return "recording"
+    try:
+        with zipfile.ZipFile(path) as archive:
+            names = {n.removesuffix(".npy") for n in archive.namelist()}
+    except (OSError, zipfile.BadZipFile, ValueError) as exc:
+        raise FormatError(f"{path}: corrupt .npz ({' '.join(str(exc).split())})") from None
+    return "captures" if names & set(CAPTURES_ONLY_KEYS) else "stream"
+
+
+def read_any(path: str | os.PathLike) -> Recording | LabelledStream | LabelledCaptures:
+    """Whatever ``path`` holds, read by the reader of its kind."""
+    kind = file_kind(path)
+    if kind == "recording":
+        return read_recording(path)
+    if kind == "stream":
+        return read_labelled_stream(path)
+    return read_labelled_captures(path)
+
+
+def read_stream(path: str | os.PathLike, purpose: str = "this") -> LabelledStream:
+    """A labelled stream from a ``.wsrec`` (its trial labels become events) or a stream
+    ``.npz``; labelled captures are refused in one line naming ``purpose`` (a command)."""
+    kind = file_kind(path)
+    if kind == "recording":
+        recording = read_recording(path)
+        if len(recording.t) == 0:
+            raise FormatError(f"{path}: recording holds no frames")
+        return recording.to_labelled_stream()
+    if kind == "stream":
+        return read_labelled_stream(path)
+    raise FormatError(
+        f"{path}: holds labelled captures (separate clips), not a stream; {purpose} needs a "
+        ".wsrec recording or a labelled-stream .npz"
+    )
+
+
+def read_captures(path: str | os.PathLike, purpose: str = "this") -> LabelledCaptures:
+    """Labelled captures from ``path``; a recording or a stream is refused in one line."""
+    kind = file_kind(path)
+    if kind != "captures":
+        what = "a .wsrec recording" if kind == "recording" else "a labelled stream"
+        raise FormatError(
+            f"{path}: holds {what}, not labelled captures; {purpose} needs a labelled-captures "
+            ".npz"
+        )
+    return read_labelled_captures(path)
+
+
+def unknown_labels(labels: Iterable[str]) -> Counter[str]:
+    """How often each label that is not one of wovenskin's 15 classes occurs."""
+    return Counter(str(label) for label in labels if str(label) not in CLASS_NAMES)
+
+
+def unknown_labels_message(where: str, unknown: Counter[str]) -> str:
+    """One line naming the unknown labels of ``where`` and what wovenskin knows."""
+    listed = ", ".join(f"{name!r} ({n} event{'s' if n > 1 else ''})" for name, n in
+                       sorted(unknown.items()))  # fmt: skip
+    return (
+        f"{where}: unknown gesture label{'s' if len(unknown) > 1 else ''} {listed}; "
+        f"wovenskin knows {', '.join(CLASS_NAMES)}"
+    )
