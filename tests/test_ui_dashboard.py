@@ -26,6 +26,25 @@ from wovenskin.ui.dashboard.server import (
     parse_touches,
 )
 
+
+class LocalClient(TestClient):
+    """A test client that, like a browser on this machine, names the server 127.0.0.1.
+
+    Without a token the server answers only loopback names (a DNS-rebinding guard), and the
+    test client's own default host, ``testserver``, is none."""
+
+    def __init__(self, app, **kwargs) -> None:
+        super().__init__(app, base_url="http://127.0.0.1", **kwargs)
+
+    def websocket_connect(self, url: str, *args, **kwargs):
+        return super().websocket_connect(f"ws://127.0.0.1{url}", *args, **kwargs)
+
+
+def local_client(app) -> TestClient:
+    """A :class:`LocalClient` of ``app``."""
+    return LocalClient(app)
+
+
 # -- scene ------------------------------------------------------------------------------
 
 
@@ -231,7 +250,7 @@ def test_only_loopback_addresses_go_without_a_token() -> None:
 
 
 def test_the_socket_sends_the_scene_then_states_and_takes_commands(runner) -> None:
-    client = TestClient(create_app(runner))
+    client = local_client(create_app(runner))
     assert "wovenskin" in client.get("/").text
     assert client.get("/static/vendor/three.min.js").status_code == 200
     with client.websocket_connect("/ws") as ws:
@@ -262,7 +281,7 @@ def _put_a_finger_down(ws, runner) -> None:
 
 
 def test_a_page_that_goes_away_with_a_finger_down_lifts_it(runner) -> None:
-    client = TestClient(create_app(runner))
+    client = local_client(create_app(runner))
     with client.websocket_connect("/ws") as ws:
         _put_a_finger_down(ws, runner)
     # the socket closed with the finger down: the finger lifts, the command ends
@@ -271,7 +290,7 @@ def test_a_page_that_goes_away_with_a_finger_down_lifts_it(runner) -> None:
 
 
 def test_a_page_that_stops_talking_with_a_finger_down_has_it_lifted(runner) -> None:
-    client = TestClient(create_app(runner))
+    client = local_client(create_app(runner))
     with client.websocket_connect("/ws") as ws:
         _put_a_finger_down(ws, runner)
         started = time.monotonic()
@@ -286,7 +305,7 @@ def test_a_page_that_stops_talking_with_a_finger_down_has_it_lifted(runner) -> N
 
 
 def test_one_page_draws_at_a_time(runner) -> None:
-    client = TestClient(create_app(runner))
+    client = local_client(create_app(runner))
     with client.websocket_connect("/ws") as first, client.websocket_connect("/ws") as second:
         assert second.receive_json()["type"] == "scene"
         _put_a_finger_down(first, runner)
@@ -438,11 +457,115 @@ def test_a_techman_arm_is_driven_from_the_page_through_its_listen_node(tmp_path)
 
 
 def test_sockets_from_another_site_are_refused(runner) -> None:
-    client = TestClient(create_app(runner))
+    client = local_client(create_app(runner))
     with (
         pytest.raises(WebSocketDisconnect),
         client.websocket_connect("/ws", headers={"origin": "http://evil.example"}) as ws,
     ):
         ws.receive_json()
-    with client.websocket_connect("/ws", headers={"origin": "http://testserver"}) as ws:
+    with client.websocket_connect("/ws", headers={"origin": "http://127.0.0.1"}) as ws:
         assert ws.receive_json()["type"] == "scene"
+
+
+# -- hostile input and careless Apply (issue 13) --------------------------------------
+
+
+def test_apply_with_an_unknown_skin_spec_keeps_the_running_session(runner) -> None:
+    """The spec is checked completely before the session is touched: the arm stays where
+    it is, the counters and the timeline go on, the page is told why in one line."""
+    runner.touch({1: Fingertip(50.0, 70.0, 1.5)})  # something in the timeline
+    assert _wait(lambda: runner.latest()["recognition"]["command"] == "swipe_up")
+    assert _wait(lambda: runner.latest()["robot"]["tcp_speed"] > 0.01)  # the arm moves
+    runner.touch({})
+    assert _wait(lambda: runner.latest()["recognition"]["command"] is None)
+    assert _wait(lambda: runner.latest()["robot"]["tcp_speed"] < 1e-4)
+    time.sleep(0.3)  # at rest
+    old, before = runner.session, runner.latest()
+    assert not np.allclose(before["robot"]["q"], INITIAL_Q, atol=1e-3)  # away from home
+    for spec in ("bogus:xyz", "replay:/nowhere/missing.npz", "sim:auto=0,gain=lots"):
+        runner.submit({"cmd": "switch", "skin": spec, "robot": "sim"})
+        assert _wait(lambda s=spec: any(s in m for m in runner.latest()["messages"]))
+    after = runner.latest()
+    assert runner.session is old and runner.skin_spec == before["skin"]["source"]
+    errors = [m for m in after["messages"] if m.startswith("error: switch:")]
+    assert len(errors) == 3 and all("kept skin sim:auto=0,seed=2" in m for m in errors)
+    assert not any(m.startswith("now: skin") for m in after["messages"])
+    assert after["skin"]["counters"]["good"] > before["skin"]["counters"]["good"]  # not reset
+    assert np.allclose(after["robot"]["q"], before["robot"]["q"], atol=1e-4)  # no jump home
+    names = [e["name"] for e in after["timeline"] if e["kind"] == "command"]
+    assert "swipe_up" in names  # the timeline was kept
+
+
+def test_only_loopback_host_names_reach_a_server_without_a_token(runner) -> None:
+    """DNS rebinding: a page from rebind.attacker.example (re-pointed at 127.0.0.1) sends
+    its own name as Host and Origin; it gets 403 and its socket is refused, so its
+    ``perform swipe_up`` never reaches the arm."""
+    from wovenskin.ui.dashboard.server import loopback_host
+
+    app = create_app(runner)
+    evil = "rebind.attacker.example:8000"
+    client = TestClient(app, base_url=f"http://{evil}")
+    page = client.get("/")
+    assert page.status_code == 403 and "loopback" in page.text
+    assert client.get("/api/state").status_code == 403
+    perform = json.dumps({"type": "command", "cmd": "perform", "gesture": "swipe_up"})
+    origin = {"origin": f"http://{evil}"}
+    with (
+        pytest.raises(WebSocketDisconnect) as refused,
+        client.websocket_connect(f"ws://{evil}/ws", headers=origin) as ws,
+    ):
+        ws.send_text(perform)
+        ws.receive_json()
+    assert refused.value.code == 4403
+    time.sleep(0.3)
+    assert runner.latest()["robot"]["tcp_speed"] < 1e-3
+    assert not any("performs swipe_up" in m for m in runner.latest()["messages"])
+    for name in ("localhost:8000", "127.0.0.1", "[::1]:8000", "127.0.0.2:80"):
+        assert loopback_host(name), name
+        assert TestClient(app, base_url=f"http://{name}").get("/").status_code == 200
+    for name in ("", "rebind.attacker.example", "localhost.attacker.example", "0.0.0.0:8000",
+                 "192.168.1.20:8000", "[::1"):  # fmt: skip
+        assert not loopback_host(name), name
+    # an origin that is not the page's own address is refused on a loopback Host, too
+    local = LocalClient(app)
+    with pytest.raises(WebSocketDisconnect), local.websocket_connect(
+        "/ws", headers={"origin": f"http://{evil}"}
+    ) as ws:
+        ws.receive_json()
+    # with a token (a server on the network) other names are fine: the token guards
+    tokened = TestClient(create_app(runner, token="s3cret"), base_url="http://192.168.1.20")
+    assert tokened.get("/?token=s3cret").status_code == 200
+
+
+def test_hostile_socket_messages_get_an_error_reply_and_keep_the_connection(runner) -> None:
+    client = local_client(create_app(runner))
+    touch = '{{"type": "touch", "touches": [{{"id": {}, "x_mm": 5, "y_mm": 5, "force_n": 1}}]}}'
+    hostile = [
+        touch.format("Infinity"),
+        touch.format("1e400"),
+        touch.format("-Infinity"),
+        touch.format("2.5"),
+        '{"type": "touch", "samples": [{"t": 1e400, "touches": []}]}',
+        "[" * 3000 + "]" * 3000,
+        '{"type": "command", "cmd": "perform", "gesture": ' + "[" * 3000 + "]" * 3000 + "}",
+        '{"type": "' + "x" * 100 + '"}',
+    ]
+    with client.websocket_connect("/ws") as ws:
+        assert ws.receive_json()["type"] == "scene"
+        for text in hostile:
+            ws.send_text(text)
+        ws.send_bytes(b"\x00\x01 a binary frame")
+        ws.send_text('{"type": "ping", "t": 1e400}')
+        ws.send_text('{"type": "ping", "t": 7}')
+        errors, pongs = [], []
+        while len(pongs) < 2:
+            message = ws.receive_json()
+            if message["type"] == "error":
+                errors.append(message["message"])
+            elif message["type"] == "pong":
+                pongs.append(message["t"])
+        assert len(errors) == len(hostile) + 1, errors
+        assert all("\n" not in e and len(e) <= 200 for e in errors)
+        assert any("binary" in e for e in errors) and any("nested" in e for e in errors)
+        assert pongs == [None, 7]  # a non-finite time is not echoed back
+    assert runner.running and runner.latest()["recognition"]["command"] is None

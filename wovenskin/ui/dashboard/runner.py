@@ -180,10 +180,12 @@ class DashboardRunner:
     # -- the session thread
 
     def _open(self, skin: str, robot: str) -> ControlSession:
-        kind, _, options = parse_spec(skin)
-        if kind == "sim" and "lookahead" not in options:
-            skin = f"{skin}{',' if ':' in skin else ':'}lookahead={DEFAULT_SIM_LOOKAHEAD}"
-        session = self._opener(skin, robot)
+        """Build and start a session for ``skin`` and ``robot`` (errors propagate)."""
+        skin = _with_lookahead(skin)
+        return self._begin(self._opener(skin, robot), skin, robot)
+
+    def _begin(self, session: ControlSession, skin: str, robot: str) -> ControlSession:
+        """Start a built session and make it this runner's view of the world."""
         try:
             session.start()
         except Exception:
@@ -326,19 +328,31 @@ class DashboardRunner:
             )
 
     def _switch(self, skin: str, robot: str) -> None:
-        """Close this session and open one with another skin or robot; if that fails the
-        old one is reopened, so the page never ends up with nothing."""
-        from wovenskin.robots.registry import make_robot
+        """Replace this session by one with another skin or robot.
 
-        parse_spec(skin)  # a malformed spec fails here, before anything is closed
-        make_robot(robot)  # builds the backend object only: nothing connects yet
+        The new session is built completely first (spec parsed, skin source and robot
+        backend created, replay files read, model and mapping loaded: everything short of
+        connecting), while the old one keeps running; a spec that fails there changes
+        nothing (arm, counters, timeline and messages stay).  Only then is the old session
+        closed and the new one started; if starting fails (a device that does not answer)
+        the old one is reopened, so the page never ends up with nothing.
+        """
+        skin = _with_lookahead(skin)
+        try:
+            candidate = self._opener(skin, robot)  # builds everything, connects nothing
+        except Exception as exc:
+            why = " ".join(str(exc).split()) or type(exc).__name__
+            raise ValueError(
+                f"kept skin {self.skin_spec} and robot {self.robot_spec}: "
+                f"cannot use skin {skin!r} with robot {robot!r}: {why}"
+            ) from exc
         old = self.session
         assert old is not None
         old_skin, old_robot = self.skin_spec, self.robot_spec
         speed, messages = old.speed_scale, list(old.state.messages)
         old.close()
         try:
-            self.session = self._open(skin, robot)
+            self.session = self._begin(candidate, skin, robot)
             failure = None
         except Exception as exc:
             self.session = self._open(old_skin, old_robot)
@@ -346,7 +360,7 @@ class DashboardRunner:
         self.session.speed_scale = speed
         self.session.state.messages.extend(messages)
         if failure is not None:
-            why = f"could not open skin {skin!r} with robot {robot!r}: {failure}"
+            why = f"could not start skin {skin!r} with robot {robot!r}: {failure}"
             raise ValueError(why) from failure
         self.session.state.messages.append(f"now: skin {self.skin_spec}, robot {self.robot_spec}")
 
@@ -359,6 +373,15 @@ class DashboardRunner:
     def _autoplay(self) -> bool | None:
         source = self._sim_source()
         return None if source is None else bool(source.autonomous)
+
+
+def _with_lookahead(skin: str) -> str:
+    """``skin`` with the simulated skin's default touch lookahead added where it has none;
+    ValueError for a spec that does not parse."""
+    kind, _, options = parse_spec(skin)
+    if kind == "sim" and "lookahead" not in options:
+        return f"{skin}{',' if ':' in skin else ':'}lookahead={DEFAULT_SIM_LOOKAHEAD}"
+    return skin
 
 
 def _serial_ports() -> list[str]:

@@ -14,7 +14,15 @@ back and changes nothing.
 Bound to a loopback address the server is open to this machine's users; bound elsewhere it
 requires a token (``?token=`` on the page's address, then a cookie), compared in constant
 time, on every request and socket.  Sockets opened by another site's page (a foreign
-``Origin``) are refused either way.
+``Origin``) are refused either way.  Without a token, every request and socket must name
+this machine by a loopback name in its ``Host`` (``localhost``, ``127.0.0.1``, ``[::1]``;
+:func:`loopback_host`), and a socket's ``Origin`` must be that same address: a page served
+from another name that resolves to 127.0.0.1 (DNS rebinding) gets ``403`` and its socket
+is closed with ``4403`` before it is accepted.
+
+Every socket message is handled without ever dropping the connection: a binary frame,
+JSON nested past 64 levels, a touch id or time that is not a finite number, anything a
+message could hold gets one ``{"type": "error"}`` reply.
 
 Virtual fingers never outlive the page that put them down: a page whose socket closes
 while its fingertips are on the virtual skin has them lifted (a lift-off: the command
@@ -30,6 +38,7 @@ import asyncio
 import contextlib
 import hmac
 import json
+import math
 import secrets
 import threading
 import time
@@ -41,6 +50,7 @@ from fastapi import FastAPI, Request, WebSocket, WebSocketDisconnect
 from fastapi.responses import HTMLResponse, JSONResponse, PlainTextResponse
 from fastapi.staticfiles import StaticFiles
 
+from wovenskin.recording.formats import loads_json
 from wovenskin.sim.live import Fingertip
 from wovenskin.ui.dashboard.runner import DashboardRunner
 
@@ -81,6 +91,60 @@ def same_origin(origin: str | None, host: str | None) -> bool:
     return host is not None and urlsplit(origin).netloc.lower() == host.lower()
 
 
+LOOPBACK_NAMES_TEXT = "localhost, 127.0.0.1 or [::1]"
+
+
+def loopback_host(host: str | None) -> bool:
+    """Whether a ``Host`` header (``name[:port]``) names this machine's loopback interface:
+    ``localhost`` or a loopback IP address.  Any other name may be an attacker's domain
+    re-pointed at 127.0.0.1 (DNS rebinding), so a server without a token refuses it."""
+    import ipaddress
+    from urllib.parse import urlsplit
+
+    if not host:
+        return False
+    try:
+        name = urlsplit(f"//{host.strip()}").hostname
+    except ValueError:
+        return False
+    if name is None:
+        return False
+    if name == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(name).is_loopback
+    except ValueError:
+        return False
+
+
+class LoopbackHostGuard:
+    """ASGI middleware: without a token, only requests and sockets whose ``Host`` is a
+    loopback name (:func:`loopback_host`) reach the app; others get ``403`` (HTTP) or are
+    closed with ``4403`` before the WebSocket is accepted."""
+
+    def __init__(self, app, enabled: bool = True) -> None:
+        self.app = app
+        self.enabled = enabled
+
+    async def __call__(self, scope, receive, send) -> None:
+        if not self.enabled or scope["type"] not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        headers = dict(scope.get("headers") or [])
+        host = headers.get(b"host", b"").decode("latin-1")
+        if loopback_host(host):
+            await self.app(scope, receive, send)
+            return
+        if scope["type"] == "websocket":
+            await send({"type": "websocket.close", "code": 4403, "reason": "Host refused"})
+            return
+        text = (
+            f"refused: Host {host[:80]!r} is not a loopback name; this dashboard answers only "
+            f"{LOOPBACK_NAMES_TEXT} (protection against DNS rebinding)"
+        )
+        await PlainTextResponse(text, status_code=403)(scope, receive, send)
+
+
 def lan_addresses() -> list[str]:
     """This machine's IPv4 addresses on its networks (no loopback), for a tablet to use.
 
@@ -118,12 +182,33 @@ def parse_touches(items: object) -> dict[int, Fingertip]:
         if not isinstance(item, dict):
             raise ValueError("each touch must be an object")
         try:
-            key = int(item["id"])
-            values = [float(item[k]) for k in ("x_mm", "y_mm", "force_n")]
-        except (KeyError, TypeError, ValueError):
+            key = _touch_id(item["id"])
+            values = [_finite(item[k]) for k in ("x_mm", "y_mm", "force_n")]
+        except (KeyError, TypeError, ValueError, OverflowError):
             raise ValueError("a touch needs numeric id, x_mm, y_mm and force_n") from None
         touches[key] = Fingertip(*values)
     return touches
+
+
+MAX_TOUCH_ID = 2**31 - 1  # a browser's pointerId is a 32-bit integer
+
+
+def _finite(value: object) -> float:
+    """A finite float from a JSON number (or numeric text); ValueError otherwise."""
+    if isinstance(value, bool) or not isinstance(value, int | float | str):
+        raise TypeError("not a number")
+    number = float(value)
+    if not math.isfinite(number):
+        raise ValueError("not a finite number")
+    return number
+
+
+def _touch_id(value: object) -> int:
+    """A touch id: a whole number in 0..2^31-1 (``Infinity``, ``1e400``, 2.5 are refused)."""
+    number = _finite(value)
+    if number != int(number) or not 0 <= number <= MAX_TOUCH_ID:
+        raise ValueError("a touch id must be a whole number in 0..2^31-1")
+    return int(number)
 
 
 def parse_touch_message(message: dict) -> list[tuple[float | None, dict[int, Fingertip]]]:
@@ -143,9 +228,9 @@ def parse_touch_message(message: dict) -> list[tuple[float | None, dict[int, Fin
         t = sample.get("t")
         if t is not None:
             try:
-                t = float(t)
+                t = _finite(t)
             except (TypeError, ValueError):
-                raise ValueError("a sample's t must be a number of seconds") from None
+                raise ValueError("a sample's t must be a finite number of seconds") from None
         out.append((t, parse_touches(sample.get("touches"))))
     return out
 
@@ -188,6 +273,9 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
             response.set_cookie(COOKIE, token, httponly=True, samesite="strict")
         return response
 
+    # outermost: a foreign Host never reaches the token check or the app (DNS rebinding)
+    app.add_middleware(LoopbackHostGuard, enabled=token is None)
+
     @app.get("/", response_class=HTMLResponse)
     async def index() -> str:
         return page
@@ -215,14 +303,14 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
             while True:
                 if touch.down:  # hold-to-run: a page with fingers down keeps talking
                     try:
-                        text = await asyncio.wait_for(ws.receive_text(), TOUCH_SILENCE_S)
+                        text = await asyncio.wait_for(_receive(ws), TOUCH_SILENCE_S)
                     except TimeoutError:
                         runner.touch({})
                         touch.set_down(False)
                         runner.note(TOUCH_SILENCE_MESSAGE)
                         continue
                 else:
-                    text = await ws.receive_text()
+                    text = await _receive(ws)
                 reply = _handle(runner, text, touch)
                 if reply is not None and not replies.full():
                     replies.put_nowait(json.dumps(reply))
@@ -238,6 +326,16 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
                     runner.touch({})
 
     return app
+
+
+async def _receive(ws: WebSocket) -> str | bytes:
+    """The next frame's text, or its bytes for a binary frame (answered with an error);
+    ``WebSocketDisconnect`` when the page went away."""
+    message = await ws.receive()
+    if message["type"] == "websocket.disconnect":
+        raise WebSocketDisconnect(message.get("code", 1000))
+    text = message.get("text")
+    return text if isinstance(text, str) else bytes(message.get("bytes") or b"")
 
 
 async def _send_states(ws: WebSocket, runner: DashboardRunner, replies: asyncio.Queue) -> None:
@@ -260,32 +358,46 @@ async def _send_states(ws: WebSocket, runner: DashboardRunner, replies: asyncio.
         await asyncio.sleep(poll)
 
 
-def _handle(runner: DashboardRunner, text: str, page: PageTouch | None = None) -> dict | None:
-    """Carry out one browser message; returns an error reply or None.  ``page`` (None:
-    no bookkeeping) keeps whether this page's last touch sample had fingertips down."""
+def _handle(
+    runner: DashboardRunner, text: str | bytes, page: PageTouch | None = None
+) -> dict | None:
+    """Carry out one browser message; returns an error reply or None, never raises (a bad
+    message must not drop the page's connection).  ``page`` (None: no bookkeeping) keeps
+    whether this page's last touch sample had fingertips down."""
+    if isinstance(text, bytes):
+        return {"type": "error", "message": "binary frames are not understood: send JSON text"}
     if len(text) > MAX_MESSAGE_BYTES:
         return {"type": "error", "message": "message too long"}
     try:
-        message = json.loads(text)
-        if not isinstance(message, dict):
-            raise ValueError("a message must be a JSON object")
-        kind = message.get("type")
-        if kind == "touch":  # {"touches": [...], "t": s} or {"samples": [{"t", "touches"}]}
-            samples = parse_touch_message(message)
-            if page is not None and not page.may_touch():
-                raise ValueError("another page is drawing on the virtual skin: wait for its lift")
-            for client_t, touches in samples:
-                runner.touch(touches, client_t)
-                if page is not None:
-                    page.set_down(bool(touches))
-        elif kind == "command":
-            runner.submit({k: v for k, v in message.items() if k != "type"})
-        elif kind == "ping":
-            return {"type": "pong", "t": message.get("t")}
-        else:
-            raise ValueError(f"unknown message type {kind!r}")
+        return _carry_out(runner, text, page)
     except (ValueError, TypeError) as exc:
         return {"type": "error", "message": " ".join(str(exc).split())[:200]}
+    except Exception as exc:  # noqa: BLE001 - whatever it was, the page keeps its socket
+        return {"type": "error", "message": f"message not handled ({type(exc).__name__})"}
+
+
+def _carry_out(runner: DashboardRunner, text: str, page: PageTouch | None) -> dict | None:
+    """One message's effect (see :func:`_handle`); ValueError/TypeError for bad ones."""
+    message = loads_json(text, "the message")
+    if not isinstance(message, dict):
+        raise ValueError("a message must be a JSON object")
+    kind = message.get("type")
+    if kind == "touch":  # {"touches": [...], "t": s} or {"samples": [{"t", "touches"}]}
+        samples = parse_touch_message(message)
+        if page is not None and not page.may_touch():
+            raise ValueError("another page is drawing on the virtual skin: wait for its lift")
+        for client_t, touches in samples:
+            runner.touch(touches, client_t)
+            if page is not None:
+                page.set_down(bool(touches))
+    elif kind == "command":
+        runner.submit({k: v for k, v in message.items() if k != "type"})
+    elif kind == "ping":
+        t = message.get("t")
+        finite = isinstance(t, int | float) and not isinstance(t, bool) and math.isfinite(t)
+        return {"type": "pong", "t": t if finite else None}
+    else:
+        raise ValueError(f"unknown message type {str(kind)[:40]!r}")
     return None
 
 

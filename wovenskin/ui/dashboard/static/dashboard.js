@@ -411,7 +411,19 @@ $("record").addEventListener("click", () => command("record", { on: !(page.state
 $("speed").addEventListener("input", () => { $("speed-value").textContent = `${Math.round($("speed").value * 100)}%`; });
 $("speed").addEventListener("change", () => command("speed", { value: Number($("speed").value) }));
 $("autoplay").addEventListener("change", () => command("autoplay", { on: $("autoplay").checked }));
-$("switch").addEventListener("click", () => command("switch", { skin: $("skin-spec").value.trim(), robot: $("robot-spec").value.trim() }));
+$("switch").addEventListener("click", () => {
+  command("switch", { skin: $("skin-spec").value.trim(), robot: $("robot-spec").value.trim() });
+  settleSpecsAfterSwitch();
+});
+
+// After Apply, once the server has answered (a "now: ..." line or a "switch:" error), the
+// spec fields show the specs of the session that runs: a rejected spec does not linger.
+function settleSpecsAfterSwitch(waited_ms = 0) {
+  const last = page.state && page.state.messages.length ? page.state.messages[page.state.messages.length - 1] : "";
+  const answered = last.startsWith("now: skin") || last.startsWith("error: switch:");
+  if (!answered && waited_ms < 10000) { setTimeout(() => settleSpecsAfterSwitch(waited_ms + 200), 200); return; }
+  if (page.state) { $("skin-spec").value = page.state.skin.source; $("robot-spec").value = page.state.robot.spec; }
+}
 $("fingers").addEventListener("change", () => { spread = null; hoverSpread = null; });
 window.addEventListener("keydown", (event) => { // space: stop, wherever the focus is but a text field
   const el = document.activeElement;
