@@ -7,7 +7,23 @@ stand-in controller built from Techman's public material, for tests. docs/techma
 explains the setup and cites the sources.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from wovenskin.robots.techman.client import TechmanRobot
-from wovenskin.robots.techman.fake_server import FakeListenNode
+
+if TYPE_CHECKING:
+    from wovenskin.robots.techman.fake_server import FakeListenNode
 
 __all__ = ["FakeListenNode", "TechmanRobot"]
+
+
+def __getattr__(name: str) -> object:
+    """``FakeListenNode`` is imported on first use, so ``python -m
+    wovenskin.robots.techman.fake_server`` runs the module once, as ``__main__``."""
+    if name == "FakeListenNode":
+        from wovenskin.robots.techman.fake_server import FakeListenNode
+
+        return FakeListenNode
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
