@@ -146,12 +146,14 @@ class FakeListenNode(FakeController):
             client.close()
 
     def enter_listen_node(self) -> Packet:
-        """The flow (re-)enters the Listen Node: every client gets the enter-node message."""
-        message = super().enter_listen_node()
-        with self._client_lock:
-            clients = list(self._clients)
-        for client in clients:
-            self._send(client, message)
+        """The flow (re-)enters the Listen Node: every client gets the enter-node message,
+        ordered with the script answers (both are sent holding the controller's lock)."""
+        with self._lock:
+            message = super().enter_listen_node()
+            with self._client_lock:
+                clients = list(self._clients)
+            for client in clients:
+                self._send(client, message)
         return message
 
     # -- sockets ----------------------------------------------------------------------
@@ -207,10 +209,11 @@ class FakeListenNode(FakeController):
             if not chunk:
                 return
             for item in parser.feed(chunk):
-                replies = self.handle(item)
-                if self.answer_scripts:
-                    for reply in replies:
-                        self._send(client, reply)
+                with self._lock:  # answers leave in the order the controller made them
+                    replies = self.handle(item)
+                    if self.answer_scripts:
+                        for reply in replies:
+                            self._send(client, reply)
 
     # -- simulation -------------------------------------------------------------------
 
