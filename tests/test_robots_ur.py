@@ -264,24 +264,48 @@ def _consistent(model_name: str, tool_z: float = 0.15) -> tuple[FakeControl, Fak
     return control, receive
 
 
-def test_a_named_model_gives_the_safety_layer_the_active_tcps_kinematics() -> None:
-    from wovenskin.control.safety import default_fk, default_jacobian
-
+def test_a_named_model_declares_the_active_tcps_kinematics() -> None:
     control, receive = _consistent("ur10e", tool_z=0.15)
     arm = URRobot("h", model="ur10e", control_factory=lambda h: control,
                   receive_factory=lambda h: receive)  # fmt: skip
-    assert default_fk(arm) is not None and default_jacobian(arm) is not None
+    assert arm.capabilities().kinematics is not None
     arm.connect()
+    model = arm.capabilities().kinematics
     q = np.asarray(receive.q)
-    np.testing.assert_allclose(arm.forward_kinematics(q)[:3, 3], receive.tcp[:3], atol=1e-9)
-    jacobian, step = arm.jacobian(q), 1e-6
+    np.testing.assert_allclose(model.forward(q)[:3, 3], receive.tcp[:3], atol=1e-9)
+    jacobian, step = model.jacobian(q), 1e-6
     for joint in range(6):  # its linear rows are the TCP's velocity per joint speed
         dq = np.zeros(6)
         dq[joint] = step
-        moved = arm.forward_kinematics(q + dq)[:3, 3] - arm.forward_kinematics(q - dq)[:3, 3]
+        moved = model.forward(q + dq)[:3, 3] - model.forward(q - dq)[:3, 3]
         np.testing.assert_allclose(jacobian[:3, joint], moved / (2 * step), atol=1e-6)
     unnamed = URRobot("h", control_factory=lambda h: control, receive_factory=lambda h: receive)
-    assert default_fk(unnamed) is None and default_jacobian(unnamed) is None
+    assert unnamed.capabilities().kinematics is None
+
+
+def test_the_declaration_gives_the_drawing_and_how_the_arm_stops() -> None:
+    named = URRobot("h", model="ur10e", stop_decel=3.0).capabilities()
+    assert named.scene is not None and named.scene.caveat == ""
+    assert named.stop_time(np.array([0.3, 0, 0, 0, 0, 0])) == pytest.approx(0.1)
+    assert named.default_poses == {}  # a real arm goes only to poses the user stored
+    unnamed = URRobot("h").capabilities()
+    assert unnamed.scene is not None and "draws a UR5e" in unnamed.scene.caveat
+    assert "ur:HOST?model=" in unnamed.how_to_complete
+
+
+def test_without_a_model_the_safety_layer_refuses_the_arm_unless_degraded(caplog) -> None:
+    import logging
+
+    from wovenskin.control.safety import SafetyLayer
+    from wovenskin.robots.registry import make_robot
+
+    with pytest.raises(RobotError, match=r"ur:HOST\?model=ur5e.*safety=degraded") as info:
+        SafetyLayer(make_robot("ur:10.0.0.5"))
+    assert "\n" not in str(info.value)
+    with caplog.at_level(logging.WARNING):
+        safe = SafetyLayer(make_robot("ur:10.0.0.5?safety=degraded"))
+    assert safe.degraded and "DEGRADED" in caplog.text
+    assert not SafetyLayer(make_robot("ur:10.0.0.5?model=ur5e")).degraded
 
 
 def test_the_wrong_model_is_refused_on_connect() -> None:
@@ -303,7 +327,7 @@ def test_with_a_named_model_the_safety_layer_refuses_a_move_through_the_floor() 
     safe = SafetyLayer(arm)
     safe.connect()
     goal = np.asarray(receive.q) + np.array([0.0, 1.2, 0.0, 0.0, 0.0, 0.0])  # shoulder down
-    assert arm.forward_kinematics(goal)[2, 3] < 0.05  # the TCP would end below the floor
+    assert arm.capabilities().kinematics.forward(goal)[2, 3] < 0.05  # below the floor
     with pytest.raises(RobotError, match="outside the workspace box"):
         safe.move_to_joints(goal)
     assert "moveJ" not in control.names()

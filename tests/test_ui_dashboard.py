@@ -394,11 +394,14 @@ def test_the_page_draws_a_ur_arm_at_the_joints_it_reports(tmp_path) -> None:
         arm = URRobot(
             "10.0.0.5", control_factory=lambda h: FakeControl(), receive_factory=lambda h: receive
         )
+        # no model named: the safety layer refuses such an arm unless the user opts into
+        # degraded safety (ur:HOST?safety=degraded); this test is about the drawing
+        arm.degraded_safety = True
         return open_session(
             skin, arm, recognizer=ContactMeans("swipe_up"), poses=tmp_path / "poses.toml"
         )
 
-    runner = DashboardRunner(opener, "sim:auto=0", "ur:10.0.0.5")
+    runner = DashboardRunner(opener, "sim:auto=0", "ur:10.0.0.5?safety=degraded")
     runner.start()
     try:
         assert _wait(lambda: runner.latest() is not None)

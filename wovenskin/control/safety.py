@@ -1,27 +1,39 @@
 """The safety layer: every command to every robot backend passes through :class:`SafetyLayer`.
 
-It wraps a backend and is itself a :class:`~wovenskin.robots.base.Robot`. Each twist is
-checked before it is forwarded:
+It wraps a backend and is itself a :class:`~wovenskin.robots.base.Robot`. The backend's
+declaration (:meth:`~wovenskin.robots.base.Robot.capabilities`, resolved by
+:class:`~wovenskin.control.arm_model.ArmModel`) must give the arm's kinematics (forward
+kinematics and Jacobian): an arm without them is refused with a one-line
+:class:`RobotError` unless the user opts into **degraded safety** (``degraded=True``, or
+``safety=degraded`` in the robot spec), which a warning in the log announces. Each twist
+is checked before it is forwarded:
 
 - a non-finite or wrongly shaped twist stops the arm (a latched stop) and raises
   ``ValueError``; it is never forwarded;
 - the linear and angular parts are scaled down (direction kept) to the speed caps
-  (250 mm/s: the reduced speed for manual guidance in ISO 10218-1);
+  (250 mm/s: the reduced speed for manual guidance in ISO 10218-1) **as the arm will
+  report them**: under the caps divided by ``1 + tracking_error`` (the backend's declared
+  headroom), and, from the Jacobian, with the speeds the arm reports at the end of its
+  control period (a backend holding joint velocities for a period ends it a little off
+  the commanded twist, by several per cent near singularities);
 - each linear component that would carry the TCP out of the workspace box within the
-  prediction horizon is reduced so the TCP stops at the wall; outside the box only motion
-  back inside is allowed;
-- if a joint is (or would within the horizon be) within the margin of its limit and the
-  command drives it further, the command is not forwarded and the arm stops. The joint
-  motion is predicted from the Jacobian where one is known (``robot.jacobian(q)``, or the
-  TM5-900 model for the simulated arm), else the reported joint velocities are used.
+  prediction horizon **plus the stopping distance** (speed x stop time / 2) is reduced so
+  the TCP stops at the wall (less a standoff of the backend's tracking error); outside
+  the box only motion back inside is allowed;
+- if a joint is (or would within the horizon plus its stopping distance be) within the
+  margin of its limit and the command drives it further, the command is not forwarded
+  and the arm stops. The joint motion is predicted from the Jacobian (in degraded mode
+  the reported joint velocities are used, one tick late).
 
-Point-to-point moves are refused (``RobotError``) when the target lies outside the box or
-the joint limits less the margin, and run no faster than the caps allow. Watchdogs stop the
-arm when the skin stream or the command stream is silent for longer than ``watchdog_s``;
-:meth:`SafetyLayer.emergency_stop` (the stop key) latches like them until
-:meth:`SafetyLayer.clear_stop`. Every safety stop is a :class:`StopEvent` with a one-line
-reason, also logged through :mod:`logging`; the caller's own :meth:`SafetyLayer.stop` is a
-plain stop and records nothing.
+The stop time is the backend's declared one (``stop_time_s`` or ``stop_deceleration``),
+else :attr:`SafetyLimits.assumed_stop_time_s`. Point-to-point moves are refused
+(``RobotError``) when the target lies outside the box or the joint limits less the margin,
+and run no faster than the caps allow. Watchdogs stop the arm when the skin stream or the
+command stream is silent for longer than ``watchdog_s``; :meth:`SafetyLayer.emergency_stop`
+(the stop key) latches like them until :meth:`SafetyLayer.clear_stop`. Every safety stop
+is a :class:`StopEvent` with a one-line reason, also logged through :mod:`logging`; the
+caller's own :meth:`SafetyLayer.stop` is a plain stop and records nothing. See
+``docs/safety.md``.
 """
 
 from __future__ import annotations
@@ -34,11 +46,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from wovenskin.control.arm_model import ArmModel
 from wovenskin.robots.base import (
     N_JOINTS,
     JointLimits,
     Pose,
     Robot,
+    RobotCapabilities,
     RobotError,
     RobotState,
     finite_vector,
@@ -67,6 +81,7 @@ class SafetyLimits:
     box_horizon_s: float = 0.1  # the TCP must stay in the box this far ahead
     joint_horizon_s: float = 0.02  # joints are checked this far ahead
     arm_reach: float = 1.2  # m, bounds any joint axis's distance to the TCP (no Jacobian)
+    assumed_stop_time_s: float = 0.3  # s, to rest after stop() when a backend declares none
 
     def __post_init__(self) -> None:
         lower = _vector(self.workspace_lower, 3)
@@ -78,7 +93,7 @@ class SafetyLimits:
         object.__setattr__(self, "workspace_lower", lower)
         object.__setattr__(self, "workspace_upper", upper)
         for name in ("max_linear_speed", "max_angular_speed", "watchdog_s", "box_horizon_s",
-                     "joint_horizon_s", "arm_reach"):  # fmt: skip
+                     "joint_horizon_s", "arm_reach", "assumed_stop_time_s"):  # fmt: skip
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
@@ -117,13 +132,23 @@ class SafetyLayer(Robot):
         clock: Callable[[], float] = time.monotonic,
         jacobian: Jacobian | None = None,
         forward_kinematics: Kinematics | None = None,
+        degraded: bool | None = None,
     ) -> None:
+        """Wrap ``robot``. ``jacobian`` and ``forward_kinematics`` override the declared
+        kinematics; ``degraded`` (default: the backend's ``degraded_safety`` opt-in from the
+        robot spec) accepts an arm that lacks what the full checks need."""
         self.robot = robot
         self.limits = limits or SafetyLimits()
         self.name = robot.name
         self._clock = clock
-        self._jacobian = jacobian if jacobian is not None else default_jacobian(robot)
-        self._fk = forward_kinematics if forward_kinematics is not None else default_fk(robot)
+        self.model = ArmModel.resolve(
+            robot, self.limits.assumed_stop_time_s, jacobian, forward_kinematics
+        )
+        opted_in = bool(robot.degraded_safety if degraded is None else degraded)
+        self.degraded = opted_in and bool(self.model.missing)
+        self._announce(opted_in)
+        self._jacobian = self.model.jacobian
+        self._fk = self.model.forward
         self._joint_limits: JointLimits | None = None
         self._stops: list[StopEvent] = []
         self._latched: StopEvent | None = None
@@ -135,6 +160,32 @@ class SafetyLayer(Robot):
         self._refusing: str | None = None  # the reason of a refusal still in force
         self._in_move = False  # a point-to-point move of ours may be running
         self._blocked: tuple[np.ndarray, str] | None = None  # refused direction, no Jacobian
+        self._limiting: tuple[str, ...] = ()  # what held back the last twist (limiting)
+
+    def _announce(self, opted_in: bool) -> None:
+        """Refuse an arm the full checks cannot cover, or say how the checks are weakened."""
+        missing = " and ".join(self.model.missing)
+        if self.model.missing and not opted_in:
+            hint = self.model.capabilities.how_to_complete
+            raise RobotError(
+                f"the safety layer needs the {self.name} arm's {missing}, which its backend "
+                f"does not declare; {hint + '; or ' if hint else ''}opt into degraded safety "
+                "(safety=degraded in the robot spec, see docs/safety.md)"
+            )
+        if self.model.missing:
+            log.warning(
+                "safety DEGRADED for the %s arm (the user opted in): no %s, so joint margins "
+                "use the reported joint velocities (one tick late), joint moves are not "
+                "checked along their path and their TCP speed is bounded with a %.1f m reach",
+                self.name, missing, self.limits.arm_reach,
+            )  # fmt: skip
+        elif opted_in:
+            log.info("safety: degraded mode requested for %s, but nothing is missing", self.name)
+        if not self.model.declares_stop:
+            log.info(
+                "safety: %s declares no stop time; margins assume %.2f s to rest",
+                self.name, self.limits.assumed_stop_time_s,
+            )  # fmt: skip
 
     # -- state of the layer
 
@@ -153,6 +204,47 @@ class SafetyLayer(Robot):
         """The twist last forwarded to the backend (zero after a stop)."""
         return self._sent.copy()
 
+    @property
+    def limiting(self) -> tuple[str, ...]:
+        """Read-only report for views: one line per limit that holds the arm back now --
+        the latched stop, or what scaled or refused the last twist sent (speed cap,
+        workspace box face, joint margin); empty when the last twist ran as asked."""
+        if self._latched is not None:
+            return (f"{self._latched.source}: {self._latched.reason}",)
+        return self._limiting
+
+    def _limits_report(self, command: np.ndarray) -> tuple[str, ...]:
+        """What changed ``command`` on its way to the backend (see :attr:`limiting`): the
+        speed caps scale the whole twist; an axis of the twist actually sent that is cut
+        further than that met a workspace box face."""
+        if not np.any(command):
+            return ()
+        if self._refusing is not None:
+            return (f"joint margin: {self._refusing}",)
+        held: list[str] = []
+        asked, sent = np.asarray(command, dtype=float), self._sent
+        capped = cap_speeds(asked, self.limits.max_linear_speed, self.limits.max_angular_speed)
+        moving = np.abs(asked[:3]) > 1e-9
+        ratios = np.where(moving, sent[:3] / np.where(moving, asked[:3], 1.0), 1.0)
+        largest = float(np.max(np.abs(asked[:3])))
+        scale = float(np.max(np.abs(capped[:3]))) / largest if largest > 0 else 1.0
+        if scale < 1.0 - 1e-6:
+            cap = 1000 * self.limits.max_linear_speed
+            held.append(f"speed cap: TCP speed limited to {cap:.0f} mm/s")
+        turning = float(np.linalg.norm(asked[3:]))
+        if turning > 1e-9 and float(np.linalg.norm(sent[3:])) < turning * (1.0 - 1e-6):
+            cap = math.degrees(self.limits.max_angular_speed)
+            held.append(f"speed cap: rotation limited to {cap:.0f} deg/s")
+        for axis, name in enumerate("xyz"):
+            if moving[axis] and ratios[axis] < 0.98 * scale:  # (2 %: a backend's headroom)
+                lower = asked[axis] < 0
+                face = self.limits.workspace_lower if lower else self.limits.workspace_upper
+                held.append(
+                    f"workspace box: {name} at its {'lower' if lower else 'upper'} limit "
+                    f"({1000 * face[axis]:.0f} mm)"
+                )
+        return tuple(held)
+
     # -- Robot interface
 
     def connect(self) -> None:
@@ -164,6 +256,10 @@ class SafetyLayer(Robot):
 
     def state(self) -> RobotState:
         return self.robot.state()
+
+    def capabilities(self) -> RobotCapabilities:
+        """The wrapped backend's declaration."""
+        return self.model.capabilities
 
     def joint_limits(self) -> JointLimits:
         if self._joint_limits is None:
@@ -180,6 +276,7 @@ class SafetyLayer(Robot):
                 raise RobotError(f"robot is stopped ({self._latched.reason}); clear the stop first")
             return
         self._forward(command, self.limits.box_horizon_s, self.limits.joint_horizon_s, now)
+        self._limiting = self._limits_report(command)
 
     def move_to_joints(self, q: np.ndarray, speed_fraction: float = 0.2) -> None:
         self._require_running()
@@ -220,7 +317,8 @@ class SafetyLayer(Robot):
             self._refuse(f"pose target [{where}] m is outside the workspace box", "workspace")
         self._sent = np.zeros(6)
         self._in_move = False
-        self.robot.move_to_pose(pose, min(float(speed), self.limits.max_linear_speed))
+        cap = self.limits.max_linear_speed / self.model.headroom
+        self.robot.move_to_pose(pose, min(float(speed), cap))
         self._in_move = True
 
     def stop(self) -> None:
@@ -355,9 +453,13 @@ class SafetyLayer(Robot):
                 self.robot.send_twist(np.zeros(6))
             return
         state = self.robot.state()
-        safe = cap_speeds(command, self.limits.max_linear_speed, self.limits.max_angular_speed)
-        safe[:3] = keep_in_box(safe[:3], state.tcp.position, self.limits, box_horizon)
-        refusal = self._joint_refusal(safe, state, joint_horizon)
+        q = np.asarray(state.q, dtype=float)
+        safe = self._within_caps(command, q)
+        stopping = self.model.stop_time(safe) / 2.0  # distance = speed x this
+        if np.any(safe[:3]) or np.any(safe[3:]):
+            safe = self._within_box(safe, q, state.tcp.position, box_horizon + stopping)
+            safe = self._within_caps(safe, q)  # a wall may have turned a component inward
+        refusal = self._joint_refusal(safe, state, joint_horizon + stopping)
         if refusal is not None:
             if refusal != self._refusing:
                 self._record(now, refusal, "joint limit")
@@ -371,6 +473,32 @@ class SafetyLayer(Robot):
         self._in_move = False
         self._sent = safe
         self.robot.send_twist(safe.copy())
+
+    def _within_caps(self, command: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """``command`` scaled down (direction kept) so the speeds the arm will report stay
+        under the caps: the declared headroom, then the end-of-period prediction."""
+        max_linear = self.limits.max_linear_speed / self.model.headroom
+        max_angular = self.limits.max_angular_speed / self.model.headroom
+        safe = cap_speeds(command, max_linear, max_angular)
+        if not np.any(safe):
+            return safe
+        ratio = self.model.measured_speed_ratio(q, safe, max_linear, max_angular)
+        if ratio > 1.0:  # the reported speeds fall faster than the scale: one pass is enough
+            safe = safe / ratio if math.isfinite(ratio) else np.zeros(6)
+        return safe
+
+    def _within_box(
+        self, twist: np.ndarray, q: np.ndarray, position: np.ndarray, horizon: float
+    ) -> np.ndarray:
+        """``twist`` with its linear part limited so the TCP, as it really moves (the
+        commanded velocity plus the model's drift), stays in the box over ``horizon``;
+        the backend's tracking error keeps that share of the travel off the walls."""
+        drift = self.model.linear_drift(q, twist)
+        travel = float(np.linalg.norm(twist[:3] + drift)) * horizon
+        standoff = self.model.capabilities.tracking_error * travel
+        out = twist.copy()
+        out[:3] = keep_in_box(twist[:3] + drift, position, self.limits, horizon, standoff) - drift
+        return out
 
     def _joint_refusal(self, twist: np.ndarray, state: RobotState, horizon: float) -> str | None:
         """Why ``twist`` may not run because of a joint margin, or ``None`` when it may."""
@@ -414,6 +542,7 @@ class SafetyLayer(Robot):
         problem = None
         velocity = np.asarray(state.tcp_twist, dtype=float)
         position = np.asarray(state.tcp.position, dtype=float)
+        horizon += self.model.stop_time(velocity) / 2.0  # the stopping distance too
         ahead = keep_in_box(velocity[:3], position, self.limits, horizon)
         if not np.allclose(ahead, velocity[:3], rtol=0.0, atol=1e-9):
             problem = ("the move would carry the TCP out of the workspace box", "workspace")
@@ -491,30 +620,22 @@ def cap_speeds(twist: np.ndarray, max_linear: float, max_angular: float) -> np.n
 
 
 def keep_in_box(
-    velocity: np.ndarray, position: np.ndarray, limits: SafetyLimits, horizon: float
+    velocity: np.ndarray,
+    position: np.ndarray,
+    limits: SafetyLimits,
+    horizon: float,
+    standoff: float = 0.0,
 ) -> np.ndarray:
     """Reduce each component of ``velocity`` so ``position + velocity * horizon`` stays in
-    the workspace box; outside the box only motion back toward it is left."""
+    the workspace box less ``standoff`` (m); outside the box only motion back toward it is
+    left. Within ``standoff`` of a wall the component is turned back inward, at most at
+    ``standoff / horizon``: a backend that drifts off the commanded direction by that much
+    (its tracking error) is pushed back before it reaches the wall."""
     p = np.asarray(position, dtype=float)
-    room_up = np.maximum((limits.workspace_upper - p) / horizon, 0.0)
-    room_down = np.minimum((limits.workspace_lower - p) / horizon, 0.0)
+    push = standoff / horizon
+    room_up = np.maximum((limits.workspace_upper - standoff - p) / horizon, -push)
+    room_down = np.minimum((limits.workspace_lower + standoff - p) / horizon, push)
     return np.clip(np.asarray(velocity, dtype=float), room_down, room_up)
-
-
-def default_jacobian(robot: Robot) -> Jacobian | None:
-    """The backend's ``jacobian(q)`` (base frame, 6x6) if it has one, else ``None``."""
-    method = getattr(robot, "jacobian", None)
-    if callable(method):
-        return method
-    return None
-
-
-def default_fk(robot: Robot) -> Kinematics | None:
-    """The backend's ``forward_kinematics(q)`` (4x4, base <- tcp) if it has one, else ``None``."""
-    method = getattr(robot, "forward_kinematics", None)
-    if callable(method):
-        return method
-    return None
 
 
 def _silent(last: float | None, now: float, limit: float) -> bool:

@@ -566,7 +566,7 @@ class ControlSession:
         stored = self.poses.get(name) if self.poses is not None else None
         if stored is not None:
             return np.asarray(stored.q, dtype=float)
-        default = _simulated_default_pose(self.robot, name)
+        default = _declared_default_pose(self.robot, name)
         if default is not None:
             return default
         self._error(f"no stored {name!r} pose: store one with `wovenskin pose set {name}`")
@@ -736,15 +736,11 @@ def _min_probability(pipeline: Any) -> float:
     return float(getattr(settings, "min_probability", 0.0) or 0.0)
 
 
-def _simulated_default_pose(robot: Robot, name: str) -> np.ndarray | None:
-    """The simulated TM5-900's built-in home and initial poses when none is stored."""
-    if type(robot).__module__.startswith("wovenskin.robots.sim"):
-        from wovenskin.robots.sim import tm5_900
-
-        defaults = {"home": tm5_900.HOME_Q, "initial": tm5_900.INITIAL_Q}
-        if name in defaults:
-            return np.asarray(defaults[name], dtype=float)
-    return None
+def _declared_default_pose(robot: Robot, name: str) -> np.ndarray | None:
+    """The backend's declared pose ``name`` (``RobotCapabilities.default_poses``: the
+    simulated arm's home and initial poses) when none is stored."""
+    pose = robot.capabilities().default_poses.get(name)
+    return None if pose is None else np.asarray(pose, dtype=float)
 
 
 # -------------------------------------------------------------------------- wiring

@@ -150,9 +150,15 @@ class RobotCapabilities:
       ``(linear m/s^2, angular rad/s^2)``; speed falls at least linearly, so the distance
       covered is at most speed x stop time / 2. Undeclared, the safety layer assumes
       :attr:`~wovenskin.control.safety.SafetyLimits.assumed_stop_time_s`.
-    - ``tracking_error``: how closely a twist is followed, as measured: the reported TCP
-      linear (angular) velocity differs from the commanded one by at most this fraction
-      of the commanded speed. The safety layer leaves that much headroom under its caps.
+    - ``control_period_s``: how long the backend holds its joint velocities between
+      updates (a simulation's IK step, a controller's servo period; 0: continuously
+      updated). The arm moves on meanwhile, so the TCP speeds it reports at the end of a
+      period differ from the commanded ones; the safety layer predicts that from the
+      kinematics and keeps the reported speeds under its caps.
+    - ``tracking_error``: how closely a twist is followed beyond that, as measured: the
+      reported TCP linear (angular) speed exceeds the commanded one by at most this
+      fraction. The safety layer leaves that much headroom under its caps and keeps that
+      share of the TCP's travel away from the workspace walls.
     - ``how_to_complete``: one line telling the user how to supply what is missing.
 
     Joint limits are not here: every backend must give them (:meth:`Robot.joint_limits`).
@@ -163,6 +169,7 @@ class RobotCapabilities:
     default_poses: Mapping[str, np.ndarray] = field(default_factory=dict)
     stop_time_s: float | None = None
     stop_deceleration: tuple[float, float] | None = None
+    control_period_s: float = 0.0
     tracking_error: float = 0.0
     how_to_complete: str = ""
 
@@ -177,16 +184,14 @@ class RobotCapabilities:
                 raise ValueError(
                     f"stop_deceleration must be positive, got {self.stop_deceleration}"
                 )
+        if not (math.isfinite(self.control_period_s) and self.control_period_s >= 0.0):
+            raise ValueError(f"control_period_s must be >= 0, got {self.control_period_s!r}")
         if not (math.isfinite(self.tracking_error) and 0.0 <= self.tracking_error < 1.0):
             raise ValueError(f"tracking_error must be in [0, 1), got {self.tracking_error!r}")
         poses = {}
         for name, q in self.default_poses.items():
             poses[name] = finite_vector(q, N_JOINTS, f"default pose {name!r}")
         object.__setattr__(self, "default_poses", poses)
-
-    def missing_for_safety(self) -> list[str]:
-        """What the safety layer's full checks need and this declaration lacks."""
-        return [] if self.kinematics is not None else ["kinematics (forward kinematics, Jacobian)"]
 
     def stop_time(self, twist: np.ndarray) -> float | None:
         """Longest time :meth:`Robot.stop` takes to bring ``twist`` to rest, or ``None``

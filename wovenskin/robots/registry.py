@@ -51,13 +51,13 @@ class SpecError(ValueError):
         super().__init__(f"robot spec {spec!r} {why}; valid forms: {VALID_SPECS}")
 
 
-# -- option parsers: text -> value, or ValueError naming what is wrong
+# -- option parsers: text -> value, or a ValueError that completes "robot spec 'X' ..."
 
 
 def port_option(text: str) -> int:
     """A TCP port, 1-65535."""
     if not text.isdigit() or not 0 < int(text) < 65536:
-        raise ValueError(f"a bad port {text!r}")
+        raise ValueError(f"has a bad port {text!r}")
     return int(text)
 
 
@@ -65,7 +65,7 @@ def safety_option(text: str) -> str:
     """``full`` (the default) or ``degraded``."""
     mode = text.lower()
     if mode not in SAFETY_MODES:
-        raise ValueError(f"an unknown safety mode {text!r} (full or degraded)")
+        raise ValueError(f"has an unknown safety mode {text!r} (full or degraded)")
     return mode
 
 
@@ -148,7 +148,7 @@ def _host_and_port(spec: str, address: str) -> tuple[str, int | None]:
     try:
         return host, port_option(port_text)
     except ValueError as exc:
-        raise SpecError(spec, f"has {exc}") from None
+        raise SpecError(spec, str(exc)) from None
 
 
 def _options(spec: str, query: str, form: SpecForm) -> dict[str, Any]:
@@ -167,7 +167,7 @@ def _options(spec: str, query: str, form: SpecForm) -> dict[str, Any]:
         try:
             values[key] = allowed[key](text.strip())
         except ValueError as exc:
-            raise SpecError(spec, f"{exc}") from None
+            raise SpecError(spec, str(exc)) from None
     return values
 
 

@@ -28,6 +28,7 @@ from wovenskin.robots.base import (
     JointLimits,
     Pose,
     Robot,
+    RobotCapabilities,
     RobotError,
     RobotState,
     finite_vector,
@@ -43,6 +44,7 @@ STALE_COMMAND_S = 0.2  # a twist older than this (simulated seconds) stops the a
 STOP_TIME_S = 0.08
 MAX_STEP_S = 1.0  # longest simulated time one step() advances (longer steps are cut)
 MOVING_SPEED = 1e-6  # rad/s; joint speeds below this count as standing still
+TRACKING_ERROR = 0.01  # reported TCP speeds vs the commanded ones, beyond the IK step's
 MODEL_FILE = "tm5_900.xml"
 PLAN_SAMPLES = 41
 
@@ -187,6 +189,19 @@ class SimRobot(Robot):
     def forward_kinematics(self, q: np.ndarray) -> np.ndarray:
         """The 4x4 TCP pose in the base frame at ``q``."""
         return tm5_900.forward_kinematics(q)
+
+    def capabilities(self) -> RobotCapabilities:
+        """The TM5-900 model and drawing, its home and initial poses, how it stops (a ramp
+        over :data:`STOP_TIME_S`) and how it follows a twist: joint velocities held for
+        one IK step, then :data:`TRACKING_ERROR` at most off the commanded speeds."""
+        return RobotCapabilities(
+            kinematics=tm5_900.kinematics(),
+            scene=tm5_900.scene(),
+            default_poses={"home": tm5_900.HOME_Q, "initial": tm5_900.INITIAL_Q},
+            stop_time_s=STOP_TIME_S,
+            control_period_s=1.0 / self.ik_rate_hz,
+            tracking_error=TRACKING_ERROR,
+        )
 
     def tcp_pose(self) -> Pose:
         """The TCP pose from the MuJoCo model (base frame)."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wovenskin.robots.base import N_JOINTS, JointLimits
+from wovenskin.robots.base import N_JOINTS, JointLimits, Kinematics, SceneModel
 from wovenskin.robots.dh import (  # noqa: F401 (DHLink, dh_transform: re-exported)
     DHLink,
     chain_frames,
@@ -82,3 +82,19 @@ def jacobian(q: np.ndarray) -> np.ndarray:
 SKIN_SITE = "skin_patch"
 SKIN_UP_AXIS = np.array([1.0, 0.0, 0.0])
 SKIN_RIGHT_AXIS = np.array([0.0, 0.0, 1.0])
+
+
+def kinematics() -> Kinematics:
+    """The DH model's TCP kinematics, as a backend declares it (``RobotCapabilities``)."""
+    return Kinematics(forward=forward_kinematics, jacobian=jacobian)
+
+
+def scene() -> SceneModel:
+    """The arm's MuJoCo model (``tm5_900.xml``) and its skin patch, for the 3D view."""
+
+    def load() -> object:
+        from wovenskin.robots.sim.robot import load_model
+
+        return load_model()
+
+    return SceneModel(load, SKIN_SITE, SKIN_UP_AXIS, SKIN_RIGHT_AXIS)

@@ -38,6 +38,7 @@ from wovenskin.robots.base import (
     JointLimits,
     Pose,
     Robot,
+    RobotCapabilities,
     RobotError,
     RobotState,
     finite_vector,
@@ -608,6 +609,16 @@ class TechmanRobot(Robot):
         from wovenskin.robots.sim.tm5_900 import forward_kinematics
 
         return forward_kinematics(q)
+
+    def capabilities(self) -> RobotCapabilities:
+        """The TM5-900 model and drawing. No stop profile is declared (the safety layer
+        then assumes its conservative stop time) and no default poses (a real arm goes
+        only to poses the user stored); 1 % tracking allowance, assumed, not measured."""
+        from wovenskin.robots.sim import tm5_900
+
+        return RobotCapabilities(
+            kinematics=tm5_900.kinematics(), scene=tm5_900.scene(), tracking_error=0.01
+        )
 
     def _fault(self) -> str | None:
         with self._cond:

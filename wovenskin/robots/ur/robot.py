@@ -24,10 +24,13 @@ from scipy.spatial.transform import Rotation
 
 from wovenskin.robots.base import (
     JointLimits,
+    Kinematics,
     Pose,
     Robot,
+    RobotCapabilities,
     RobotError,
     RobotState,
+    SceneModel,
     finite_vector,
 )
 from wovenskin.robots.dh import chain_jacobian
@@ -37,6 +40,8 @@ from wovenskin.robots.ur.models import ur_model
 # slowest joints (UR10e: 120 deg/s), so that is the speed limit for all six when the arm's
 # model is not given (a named model brings its data sheet's limits, see .models).
 MAX_TOOL_LENGTH_M = 0.5  # a measured TCP further from the flange means the wrong model
+SERVO_PERIOD_S = 0.002  # the e-series controller's 500 Hz cycle
+TRACKING_ERROR = 0.01  # assumed speedL tracking allowance (see URRobot.capabilities)
 
 UR_JOINT_LIMITS = JointLimits(
     lower=np.full(6, -2 * np.pi),
@@ -95,18 +100,16 @@ class URRobot(Robot):
         model: str | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        """``model`` (``ur3e``, ``ur5e``, ``ur10e``, ``ur16e``) gives the arm's kinematics:
-        for the 3D view, for the safety layer (``forward_kinematics`` and ``jacobian`` of
-        the arm's active TCP, measured on connect from its reported joints and TCP pose)
-        and, unless ``limits`` is given, its data sheet's joint speeds.  Without it the
-        limits are the conservative :data:`UR_JOINT_LIMITS` and the safety layer bounds
-        motion without a model."""
+        """``model`` (``ur3e``, ``ur5e``, ``ur10e``, ``ur16e``) gives the arm's kinematics,
+        declared in :meth:`capabilities`: for the 3D view, for the safety layer (forward
+        kinematics and Jacobian of the arm's active TCP, measured on connect from its
+        reported joints and TCP pose) and, unless ``limits`` is given, its data sheet's
+        joint speeds.  Without it the limits are the conservative :data:`UR_JOINT_LIMITS`,
+        the view draws a UR5e, and the safety layer refuses the arm unless the user opts
+        into degraded safety."""
         self.host = host
         self.model = ur_model(model) if model is not None else None
         self._tool = np.eye(4)  # flange <- TCP, measured on connect (named model only)
-        if self.model is not None:  # the safety layer finds these (Jacobian, FK) by name
-            self.forward_kinematics = self._forward_kinematics
-            self.jacobian = self._jacobian
         if limits is None:
             limits = self.model.limits if self.model is not None else UR_JOINT_LIMITS
         self.linear_accel = linear_accel
@@ -168,6 +171,35 @@ class URRobot(Robot):
                 f"would be {length:.2f} m from the flange; check the model in the robot spec"
             )
         return tool
+
+    def capabilities(self) -> RobotCapabilities:
+        """The named model's kinematics and drawing (a UR5e drawing, with a caveat, when
+        none is named), and how ``speedStop`` stops: at ``stop_decel`` (m/s^2, and the
+        same number in rad/s^2 for rotation). The e-series controller updates joint
+        velocities every :data:`SERVO_PERIOD_S`; :data:`TRACKING_ERROR` is an assumed
+        allowance for ``speedL``'s tracking (not measured: no UR arm was at hand)."""
+        from wovenskin.robots.ur import models
+
+        kinematics = None
+        if self.model is not None:
+            kinematics = Kinematics(self._forward_kinematics, self._jacobian)
+        drawn = self.model or models.ur_model(models.DEFAULT_DISPLAY_MODEL)
+        caveat = ""
+        if self.model is None:
+            name = "UR" + drawn.name[2:]  # ur5e -> UR5e, as Universal Robots writes it
+            caveat = f"UR model not given (ur:HOST?model=ur10e, say): the view draws a {name}"
+        scene = SceneModel(
+            drawn.mujoco_model, models.SKIN_SITE, models.SKIN_UP_AXIS, models.SKIN_RIGHT_AXIS,
+            caveat,
+        )  # fmt: skip
+        return RobotCapabilities(
+            kinematics=kinematics,
+            scene=scene,
+            stop_deceleration=(self.stop_decel, self.stop_decel),
+            control_period_s=SERVO_PERIOD_S,
+            tracking_error=TRACKING_ERROR,
+            how_to_complete="name the arm's model in the robot spec (ur:HOST?model=ur5e)",
+        )
 
     def _forward_kinematics(self, q: np.ndarray) -> np.ndarray:
         """Base <- TCP (4x4) of the named model at ``q``, with the arm's active TCP."""

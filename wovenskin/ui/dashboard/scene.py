@@ -4,10 +4,11 @@
 TM5-900, or a real Techman arm whose reported joints it mirrors), lists its visible geoms
 (type, size, colour) and, for joint angles ``q``, computes every geom's position and
 orientation with ``mj_kinematics``, plus the skin patch's corners, so the page draws the
-same arm the simulation moves.  A Universal Robots arm is drawn from its own DH table
+same arm the simulation moves.  Which model to draw is the backend's declaration
+(``RobotCapabilities.scene``): a Universal Robots arm is drawn from its own DH table
 (:mod:`wovenskin.robots.ur.models`: the model named in its spec, else a UR5e, said so in
-the page's messages).  An arm with no kinematic model gets no scene: the page then shows
-the TCP only.
+the page's messages).  An arm that declares no scene gets none: the page then shows the
+TCP only.
 """
 
 from __future__ import annotations
@@ -74,27 +75,15 @@ class ArmScene:
 
     @classmethod
     def for_robot(cls, robot: object) -> ArmScene | None:
-        """The scene of a backend's arm, or ``None`` when there is no model of it."""
-        module = type(robot).__module__
-        if module.startswith(("wovenskin.robots.sim", "wovenskin.robots.techman")):
-            from wovenskin.robots.sim import tm5_900
-            from wovenskin.robots.sim.robot import load_model
+        """The scene a backend declares (``RobotCapabilities.scene``), or ``None``."""
+        from wovenskin.robots.base import Robot
 
-            return cls(
-                load_model(), tm5_900.SKIN_SITE, tm5_900.SKIN_UP_AXIS, tm5_900.SKIN_RIGHT_AXIS
-            )
-        if module.startswith("wovenskin.robots.ur"):
-            from wovenskin.robots.ur import models
-
-            arm = getattr(robot, "model", None)
-            caveat = ""
-            if arm is None:
-                arm = models.ur_model(models.DEFAULT_DISPLAY_MODEL)
-                drawn = "UR" + arm.name[2:]  # ur5e -> UR5e, as Universal Robots writes it
-                caveat = f"UR model not given (ur:HOST?model=ur10e, say): the view draws a {drawn}"
-            return cls(arm.mujoco_model(), models.SKIN_SITE, models.SKIN_UP_AXIS,
-                       models.SKIN_RIGHT_AXIS, caveat)  # fmt: skip
-        return None
+        if not isinstance(robot, Robot):
+            return None
+        scene = robot.capabilities().scene
+        if scene is None:
+            return None
+        return cls(scene.load(), scene.skin_site, scene.up_axis, scene.right_axis, scene.caveat)
 
     def describe(self) -> dict:
         """The static part, sent once per page: shapes in the order of :meth:`poses`."""
