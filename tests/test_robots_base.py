@@ -49,3 +49,61 @@ def test_state_reports_the_linear_tcp_speed() -> None:
         tcp_twist=np.array([0.03, 0.04, 0.0, 1.0, 0.0, 0.0]),
     )
     assert state.tcp_speed == pytest.approx(0.05)
+
+
+# -- what a backend declares -------------------------------------------------------------
+
+
+def test_a_backend_declares_nothing_unless_it_says_so() -> None:
+    from wovenskin.robots.base import Robot, RobotCapabilities
+
+    assert Robot.capabilities(object()) == RobotCapabilities()  # type: ignore[arg-type]
+    empty = RobotCapabilities()
+    assert empty.kinematics is None and empty.scene is None and empty.default_poses == {}
+    assert empty.stop_time(np.ones(6)) is None and not Robot.degraded_safety
+
+
+def test_the_stop_time_comes_from_a_ramp_or_a_deceleration() -> None:
+    from wovenskin.robots.base import RobotCapabilities
+
+    twist = np.array([0.3, 0.0, 0.4, 0.0, 1.0, 0.0])  # 0.5 m/s, 1 rad/s
+    assert RobotCapabilities(stop_time_s=0.1).stop_time(twist) == pytest.approx(0.1)
+    decel = RobotCapabilities(stop_deceleration=(2.0, 4.0))
+    assert decel.stop_time(twist) == pytest.approx(0.25)  # the linear part is the slower
+    both = RobotCapabilities(stop_time_s=0.3, stop_deceleration=(2.0, 4.0))
+    assert both.stop_time(twist) == pytest.approx(0.3)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"stop_time_s": -0.1}, "stop_time_s"),
+        ({"stop_time_s": float("nan")}, "stop_time_s"),
+        ({"stop_deceleration": (0.0, 1.0)}, "stop_deceleration"),
+        ({"tracking_error": 1.5}, "tracking_error"),
+        ({"control_period_s": -1.0}, "control_period_s"),
+        ({"default_poses": {"home": [0.0] * 5}}, "default pose 'home'"),
+        ({"default_poses": {"home": [np.nan] * 6}}, "default pose 'home'"),
+    ],
+)
+def test_a_bad_declaration_is_refused_in_one_line(kwargs, match) -> None:
+    from wovenskin.robots.base import RobotCapabilities
+
+    with pytest.raises(ValueError, match=match) as info:
+        RobotCapabilities(**kwargs)
+    assert "\n" not in str(info.value)
+
+
+def test_every_backend_declares_its_kinematics_and_scene() -> None:
+    from wovenskin.robots.sim import SimRobot, tm5_900
+    from wovenskin.robots.techman import TechmanRobot
+
+    for robot in (SimRobot(), TechmanRobot("127.0.0.1")):  # built, never connected
+        declared = robot.capabilities()
+        assert declared.kinematics is not None and declared.scene is not None
+        q = tm5_900.INITIAL_Q
+        np.testing.assert_allclose(declared.kinematics.forward(q), tm5_900.forward_kinematics(q))
+    sim = SimRobot().capabilities()
+    np.testing.assert_allclose(sim.default_poses["initial"], tm5_900.INITIAL_Q)
+    assert sim.stop_time_s is not None and sim.control_period_s > 0.0
+    assert TechmanRobot("127.0.0.1").capabilities().default_poses == {}
