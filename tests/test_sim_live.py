@@ -280,3 +280,96 @@ def test_a_lifted_outside_fingertip_is_sensed_for_a_moment_then_goes():
         assert gone_after > 2 * hover  # the hover tail (4 time constants) was rendered
     finally:
         source.close()
+
+
+def test_sparse_samples_are_reconstructed_as_a_path_not_jumps():
+    """A busy page sends a stroke as a few samples, each arriving after the fingertip has
+    already reached the previous one: the fingertip must still slide frame by frame at the
+    drawn speed (a 10-20 mm jump between two frames looks like two fingers)."""
+    from wovenskin.sim.live import Fingertip
+
+    source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
+    rendered: list[np.ndarray] = []
+    render = source._model.render
+
+    def spy(contacts=(), n_frames=None, bursts=(), offset=0):
+        for track in contacts:
+            rendered.append(np.stack([track.y_mm, track.force_n], axis=1))
+        return render(contacts, n_frames, bursts, offset)
+
+    source._model.render = spy
+    source.start()
+    try:
+        _frames_for(source, 0.2)
+        for k in range(6):  # 0.4 s from y 119 to 21 mm in 6 samples, 80 ms apart, sent live
+            source.set_touches({1: Fingertip(50.0, 119.0 - 98.0 * k / 5, 1.5)}, time.monotonic())
+            _frames_for(source, 0.08)
+        source.set_touches({}, time.monotonic())
+        _frames_for(source, 0.5)
+    finally:
+        source.close()
+    path = np.concatenate(rendered)
+    y = path[path[:, 1] > 0.5, 0]  # frames in firm contact
+    assert y[0] > 110 and y[-1] < 30
+    steps = np.abs(np.diff(y))
+    assert steps.max() < 3.0, f"the fingertip jumped {steps.max():.1f} mm in one frame"
+    moving = np.count_nonzero(steps > 0.05)
+    assert 50 <= moving <= 110  # ~0.4 s of sliding at 200 frames/s: the drawn speed
+
+
+def test_performances_are_rendered_in_short_pieces():
+    """A whole performance rendered at once took up to 130 ms (longer under load), more
+    than the dashboard's 30 ms lookahead plus the 100 ms skin watchdog: the reader starved
+    and the arm stopped.  Every render call now covers at most 50 ms of frames."""
+    source = SimulatedSkinSource(seed=4, speed=0, idle_s=(0.05, 0.1), lookahead_s=0.25)
+    sizes: list[int] = []
+    render = source._model.render
+
+    def spy(contacts=(), n_frames=None, bursts=(), offset=0):
+        frames = render(contacts, n_frames, bursts, offset)
+        sizes.append(len(frames))
+        return frames
+
+    source._model.render = spy
+    source.start()
+    try:
+        collect(source, 2000)
+        assert len(source.events) >= 3  # the person performed
+    finally:
+        source.close()
+    assert max(sizes) <= int(0.05 * FS)
+
+
+def test_a_sparse_press_rises_smoothly_between_its_samples():
+    """A busy page sends a mouse's rising press (push) as a few samples 100 ms apart: the
+    fingertip's force must rise along the way, not in 20 ms steps."""
+    from wovenskin.sim.live import Fingertip
+
+    source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
+    rendered: list[np.ndarray] = []
+    render = source._model.render
+
+    def spy(contacts=(), n_frames=None, bursts=(), offset=0):
+        rendered.extend(track.force_n for track in contacts)
+        return render(contacts, n_frames, bursts, offset)
+
+    source._model.render = spy
+    source.start()
+    try:
+        _frames_for(source, 0.2)
+        source.set_touches({1: Fingertip(50.0, 70.0, 1.0)}, time.monotonic())
+        _frames_for(source, 0.3)
+        for k in range(1, 5):  # 1 N -> 4 N in 4 steps, 100 ms apart, sent live
+            source.set_touches({1: Fingertip(50.0, 70.0, 1.0 + 0.75 * k)}, time.monotonic())
+            _frames_for(source, 0.1)
+        _frames_for(source, 0.3)
+        source.set_touches({}, time.monotonic())
+        _frames_for(source, 0.3)
+    finally:
+        source.close()
+    force = np.concatenate(rendered)
+    first, last = np.flatnonzero(force > 1.02)[0], np.flatnonzero(force > 3.98)[0]
+    rising = force[first - 1 : last + 1]
+    assert np.all(np.diff(rising) >= -1e-9)  # it only rises ...
+    assert np.diff(rising).max() < 0.1  # ... ~0.04 N per frame, never a 0.75 N step
+    assert len(rising) >= 50  # over ~0.3-0.4 s of frames

@@ -23,6 +23,7 @@ import threading
 import time
 from collections import deque
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -55,6 +56,7 @@ OPTIONS = (
 """Keys understood by :meth:`SimulatedSkinSource.from_options`."""
 
 _IDLE_CHUNK_S = 0.05  # idle is rendered in small pieces so that requests start promptly
+_PERFORMANCE_CHUNK_S = 0.05  # performances too: a long one rendered at once starved the reader
 _LOOKAHEAD_S = 0.25  # how far ahead of the wall clock frames are rendered (default)
 _UNPACED_BUFFER_S = 1.0  # speed=0: frames kept ready for the consumer
 _TOUCH_CHUNK_S = 0.01  # outside fingertips are rendered in pieces this long
@@ -64,6 +66,10 @@ MAX_TOUCHES = 10
 _HOVER_TAIL_TAUS = 4.0  # a lifted outside fingertip is sensed for this many hover constants
 TOUCH_JITTER_S = 0.03  # timestamped outside touches play this far behind their first sample
 MAX_TOUCH_LEAD_S = 2.0  # a sample timed further ahead than this re-anchors the sender's clock
+MAX_TOUCH_SEGMENT_S = 0.25  # a fingertip slides between sparse samples over at most this long
+_TOUCH_MOVED_MM = 0.2  # a sample this far from where a fingertip waits moves it
+_TOUCH_PRESSED_N = 0.02  # ... or one this much harder or lighter presses it
+_RESUME_SEGMENT_S = 0.05  # after a rest, a sparse sample's slide lasts at most this long
 _VIRTUAL_PAD = Pad(width_mm=9.0, growth_mm=3.0, aspect=1.15)
 
 
@@ -84,6 +90,20 @@ class Fingertip:
             raise ValueError(f"fingertip force must be >= 0 N, got {self.force_n}")
 
 
+def _changes(before: dict[int, Fingertip], after: dict[int, Fingertip]) -> bool:
+    """Whether ``after`` moves or presses (harder or lighter) a fingertip of ``before``."""
+    for key, tip in after.items():
+        old = before.get(key)
+        if old is None:
+            continue
+        if np.hypot(tip.x_mm - old.x_mm, tip.y_mm - old.y_mm) > _TOUCH_MOVED_MM:
+            return True
+        pressing = tip.force_n > 0 and old.force_n > 0
+        if pressing and abs(tip.force_n - old.force_n) > _TOUCH_PRESSED_N:
+            return True
+    return False
+
+
 @dataclass
 class _TouchSample:
     """The outside fingertips from one moment on, at ``t`` on the stream clock."""
@@ -101,6 +121,7 @@ class _Finger:
     rate: float = 0.0  # N per frame toward the target force
     anchor_t: float = 0.0  # stream time of the sample that last placed it
     lifted_frames: int = 0  # frames since its force reached zero (the hover tail)
+    ramped: bool = False  # its force reached the target (landed, no lift under way)
 
     def aim(self, target: Fingertip, frames_per_ramp: float) -> None:
         if target.force_n != self.target.force_n or self.rate == 0.0:
@@ -113,6 +134,14 @@ class _Finger:
 class _Upcoming:
     request: str | None
     contact_frame: int  # stream frame of the next event's first contact
+
+
+@dataclass
+class _Performing:
+    """A performance being rendered piece by piece: ``done`` of its frames so far."""
+
+    performance: Any
+    done: int = 0
 
 
 class SimulatedSkinSource:
@@ -188,6 +217,9 @@ class SimulatedSkinSource:
         self._fingers: dict[int, _Finger] = {}  # outside fingertips (set_touches)
         self._touch_timeline: deque[_TouchSample] = deque()  # samples not yet reached
         self._touch_offset: float | None = None  # stream time = client time + offset
+        self._touch_client_t: float | None = None  # sender's time of the newest sample
+        self._touch_still = False  # the newest sample repeated the one before (a rest)
+        self._performing: _Performing | None = None  # a performance still being rendered
 
     # -- construction from a spec -------------------------------------------------------------
     @classmethod
@@ -343,6 +375,17 @@ class SimulatedSkinSource:
         than that delays the rest of the touch rather than making the finger jump; one
         timed more than :data:`MAX_TOUCH_LEAD_S` ahead (the sender's clock jumped) plays
         from now.  Without ``client_t`` a sample applies at the next rendered frame.
+
+        Sparse samples (a busy page, a slow tablet: 3-13 per stroke) are reconstructed,
+        not jumped: when a sample that moves a fingertip arrives after the fingertip has
+        already reached the previous one and stood waiting, the slide to it starts at the
+        next rendered frame and lasts the samples' own spacing (at most
+        :data:`MAX_TOUCH_SEGMENT_S`), and the rest of the touch plays that much later.  The
+        play-out delay so grows to the sender's sample spacing and the fingertip moves
+        along the drawn path at the drawn speed, frame by frame (a jump of 10-20 mm between
+        two frames looked like two fingers to the recogniser).  A pressing fingertip's
+        force changes the same way, in a straight line from sample to sample (a busy page
+        sent a mouse's rising press as steps 100 ms apart, and `push` was not recognised).
         Positions may lie off the sensing area (nothing is sensed there); forces are capped
         at :data:`MAX_TOUCH_FORCE_N`.  Raises ``ValueError`` for more than :data:`MAX_TOUCHES`
         fingertips, values that are not fingertips or a non-finite ``client_t``."""
@@ -373,9 +416,40 @@ class SimulatedSkinSource:
                 elif t > max(head, last) + MAX_TOUCH_LEAD_S:  # the sender's clock jumped ahead:
                     self._touch_offset -= t - (head + TOUCH_JITTER_S)  # play from now, not then
                     t = head + TOUCH_JITTER_S
+                t = self._stretch_starved(capped, client_t, t, head)
                 t = max(t, last)
+                self._touch_client_t = float(client_t)
+                previous = self._touch_timeline[-1].touches if self._touch_timeline else None
+                if previous is None:
+                    previous = {key: finger.target for key, finger in self._fingers.items()}
+                self._touch_still = not _changes(previous, capped)
             self._touch_timeline.append(_TouchSample(t, capped))
             self._cond.notify_all()
+
+    def _stretch_starved(
+        self, touches: dict[int, Fingertip], client_t: float, t: float, head: float
+    ) -> float:
+        """The stream time of a sample that moves fingertips which already stand at the
+        previous sample (the sender is sparser than the play-out delay): the slide starts
+        at ``head`` and lasts the samples' spacing (see :meth:`set_touches`).  The caller
+        holds the lock."""
+        previous = self._touch_client_t
+        if previous is None or self._touch_timeline or not self._fingers:
+            return t  # nothing waits: the sample is in time (or lands new fingertips)
+        waiting = {key: finger.target for key, finger in self._fingers.items()}
+        if not _changes(waiting, touches):  # a resting hand's heartbeat: nothing to rebuild
+            return t
+        # After a rest (the previous sample repeated the one before: a heartbeat) the gap
+        # says nothing about when the hand started again: it moves over a short segment.
+        longest = _RESUME_SEGMENT_S if self._touch_still else MAX_TOUCH_SEGMENT_S
+        spacing = min(max(float(client_t) - previous, 0.0), longest)
+        if t >= head + spacing:
+            return t
+        for finger in self._fingers.values():
+            finger.anchor_t = head  # it stood at its target until now; slides from here
+        assert self._touch_offset is not None
+        self._touch_offset += head + spacing - t
+        return head + spacing
 
     @property
     def touching(self) -> bool:
@@ -443,11 +517,21 @@ class SimulatedSkinSource:
                 self._cond.notify_all()
 
     def _render_next(self, request: str | None) -> np.ndarray:
-        """Render the next piece: an idle chunk, or a whole performance once it is due."""
+        """Render the next piece: an idle chunk, or the next chunk of a performance.
+
+        Every piece is at most :data:`_PERFORMANCE_CHUNK_S` long (or the lookahead, if
+        shorter): rendering a whole multi-second performance at once took up to 130 ms on
+        an idle machine, longer than the dashboard's 30 ms lookahead plus the safety
+        layer's 100 ms skin watchdog, so the reader starved and the arm stopped."""
         fs = self._fs
         lead = int(round(LEAD_S * fs))
         upcoming = self._upcoming
         chunk = int(round(min(_IDLE_CHUNK_S, self.lookahead_s) * fs))
+        if self._performing is not None:  # finish the performance under way first
+            if request is not None:
+                with self._cond:
+                    self._requests.appendleft(request)
+            return self._continue_performance()
         with self._cond:
             touching = bool(self._fingers or self._touch_timeline)
         if touching:  # outside fingertips: the person waits until they have lifted
@@ -480,7 +564,6 @@ class SimulatedSkinSource:
             offset + performance.event_start_s,
             offset + performance.event_end_s,
         )
-        frames = self._model.render(performance.contacts, performance.n_frames, performance.bursts)
         end_frame = int(round(event.end_s * fs))
         gap = int(round(self._scheduler.idle_gap_s() * fs))
         min_gap = int(round(self._scheduler.idle_s[0] * fs))
@@ -488,6 +571,21 @@ class SimulatedSkinSource:
             self._events.append(event)
             self._upcoming = _Upcoming(None, end_frame + gap)
             self._earliest_contact = end_frame + max(min_gap, 2 * lead)
+        self._performing = _Performing(performance)
+        return self._continue_performance()
+
+    def _continue_performance(self) -> np.ndarray:
+        """The next chunk of the performance under way (the same frames as rendering it
+        at once: the model renders a track in pieces by offset)."""
+        performing = self._performing
+        assert performing is not None
+        performance = performing.performance
+        chunk = max(1, int(round(min(_PERFORMANCE_CHUNK_S, self.lookahead_s) * self._fs)))
+        n = min(chunk, performance.n_frames - performing.done)
+        frames = self._model.render(performance.contacts, n, performance.bursts, performing.done)
+        performing.done += n
+        if performing.done >= performance.n_frames:
+            self._performing = None
         return frames
 
     def _render_touches(self, n: int) -> np.ndarray:
@@ -509,16 +607,23 @@ class SimulatedSkinSource:
                 upcoming = self._touch_timeline[0] if self._touch_timeline else None
                 for key, finger in self._fingers.items():
                     nxt = upcoming.touches.get(key) if upcoming is not None else None
+                    force = None  # a pressing fingertip's force on its way to the next sample
                     if nxt is not None and upcoming.t > finger.anchor_t:
                         f = (t - finger.anchor_t) / (upcoming.t - finger.anchor_t)
                         f = min(max(f, 0.0), 1.0)
                         x = finger.target.x_mm + (nxt.x_mm - finger.target.x_mm) * f
                         y = finger.target.y_mm + (nxt.y_mm - finger.target.y_mm) * f
+                        now_n, next_n = finger.target.force_n, nxt.force_n
+                        if finger.ramped and now_n > 0 and next_n > 0:
+                            force = now_n + (next_n - now_n) * f
                     else:
                         x, y = finger.target.x_mm, finger.target.y_mm
-                    step = float(np.clip(finger.target.force_n - finger.force, -finger.rate,
-                                         finger.rate))  # fmt: skip
-                    finger.x, finger.y, finger.force = x, y, max(0.0, finger.force + step)
+                    if force is None:  # landing, lifting, or no next sample: the force ramp
+                        step = float(np.clip(finger.target.force_n - finger.force, -finger.rate,
+                                             finger.rate))  # fmt: skip
+                        force = max(0.0, finger.force + step)
+                        finger.ramped = abs(force - finger.target.force_n) < 1e-9
+                    finger.x, finger.y, finger.force = x, y, force
                     if finger.force > 0.0:
                         finger.lifted_frames = 0
                     elif finger.target.force_n == 0.0:
