@@ -36,3 +36,28 @@ def test_gestures_drawn_as_on_a_touch_screen_are_scored_by_their_first_command()
 def test_the_command_refuses_bad_options() -> None:
     outcome = CliRunner().invoke(app, ["bench", "dashboard", "--swipes", "0"])
     assert outcome.exit_code == 2 and "--swipes must be" in outcome.stderr
+
+
+def test_gestures_drawn_with_a_mouse_are_scored_per_gesture_and_sampling() -> None:
+    result = run_dashboard_benchmark(
+        idle_seconds=0.5, swipes=1, mouse_rounds=1, mouse_gestures=("swipe_left", "push")
+    )
+    assert set(result.mouse) == {"dense", "sparse"}
+    for sampling in ("dense", "sparse"):
+        success = result.mouse_success(sampling)
+        assert set(success) == {"swipe_left", "push"}
+        assert all(n == 1 and 0 <= right <= ended <= 1 for right, ended, n in success.values())
+    assert result.to_dict()["mouse_success"]["sparse"]["push"][2] == 1
+    assert "drawn with a mouse, sparse samples" in str(result.table().columns[0]._cells)
+
+
+def test_a_sparse_mouse_stroke_sends_3_to_13_samples_along_the_drawn_path() -> None:
+    import numpy as np
+
+    from wovenskin.bench.dashboard import _mouse_path
+
+    rng = np.random.default_rng(3)
+    t, xy, _ = _mouse_path("swipe_left", rng)
+    travel = float(np.linalg.norm(xy[-1] - xy[0]))
+    assert 40.0 <= travel <= 90.0 and 70.0 <= travel / t[-1] <= 250.0 + 1e-6
+    assert xy[-1, 0] < xy[0, 0] and abs(xy[-1, 1] - xy[0, 1]) < 1e-9

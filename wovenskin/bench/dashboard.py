@@ -19,6 +19,14 @@ WebSocket, from a client in this process:
   perform`) and sent as a touch screen would send it: one pointer per fingertip, a
   timestamped sample every 10 ms while the fingertip presses.  For each, the first
   command the page shows and the time from the first touch message to it.
+- The vocabulary as a mouse draws it (``mouse_rounds``): what the page's mouse can draw
+  -- the one- and two-finger swipes (a hand of two fingertips 18 mm apart), the
+  two-finger circles and ``push`` (the button held still, then Shift or the wheel ramps
+  the pressure, :data:`PRESS_RATE` per second) -- with strokes 40-90 mm long at 70-250 mm/s
+  on average (docs/gestures.md's range; circles of 14-26 mm radius at 1-2.6 turns/s),
+  each drawn twice: densely sampled (a pointer sample every 8 ms, a quiet page) and
+  sparsely (3-13 samples per stroke, a busy page or a slow tablet).  A trial succeeds
+  when the commands shown during it are exactly the gesture (no other one, no flicker).
 """
 
 from __future__ import annotations
@@ -68,6 +76,22 @@ class DashboardBenchResult:
     gesture_rounds: int = 0
     drawn: dict[str, list[str | None]] = field(default_factory=dict)  # gesture -> first commands
     drawn_latency_ms: dict[str, list[float]] = field(default_factory=dict)  # right ones only
+    mouse_rounds: int = 0
+    # sampling ("dense"/"sparse") -> gesture -> per trial, the distinct commands shown
+    mouse: dict[str, dict[str, list[list[str]]]] = field(default_factory=dict)
+
+    def mouse_success(self, sampling: str) -> dict[str, tuple[int, int, int]]:
+        """Per gesture: trials whose commands were exactly the gesture, trials that ended
+        on it (a circle may start as a two-finger swipe and be taken over, as the execution
+        rules allow), and trials."""
+        return {
+            name: (
+                sum(shown == [name] for shown in trials),
+                sum(bool(shown) and shown[-1] == name for shown in trials),
+                len(trials),
+            )
+            for name, trials in self.mouse.get(sampling, {}).items()
+        }
 
     @property
     def drawn_right(self) -> int:
@@ -78,7 +102,9 @@ class DashboardBenchResult:
         return sum(len(firsts) for firsts in self.drawn.values())
 
     def to_dict(self) -> dict:
-        return {**asdict(self), "drawn_right": self.drawn_right, "drawn_total": self.drawn_total}
+        success = {s: self.mouse_success(s) for s in self.mouse}
+        return {**asdict(self), "drawn_right": self.drawn_right, "drawn_total": self.drawn_total,
+                "mouse_success": success}  # fmt: skip
 
     def table(self) -> Table:
         table = Table(title="wovenskin bench dashboard: sim skin + sim TM5-900, over the socket")
@@ -119,6 +145,20 @@ class DashboardBenchResult:
                 wrong = [str(first) for first in firsts if first != name]
                 if wrong:
                     table.add_row(f"  {name} taken for", ", ".join(wrong))
+        for sampling in self.mouse:
+            success = self.mouse_success(sampling)
+            right = sum(r for r, _, _ in success.values())
+            ended = sum(e for _, e, _ in success.values())
+            total = sum(n for _, _, n in success.values())
+            table.add_row(
+                f"drawn with a mouse, {sampling} samples ({self.mouse_rounds} rounds)",
+                f"{right} / {total} exactly right, {ended} ended right",
+            )
+            for name, (r, _, n) in success.items():
+                wrong = [" then ".join(shown) or "nothing"
+                         for shown in self.mouse[sampling][name] if shown != [name]]  # fmt: skip
+                detail = f"  ({'; '.join(wrong)})" if wrong else ""
+                table.add_row(f"  {name}", f"{r} / {n}{detail}")
         return table
 
 
@@ -189,6 +229,98 @@ def _draw(client: _Client, name: str, rng: np.random.Generator) -> float:
     return t0
 
 
+MOUSE_GESTURES = (
+    "swipe_up", "swipe_down", "swipe_left", "swipe_right", "push",
+    "swipe_up_2f", "swipe_down_2f", "swipe_left_2f", "swipe_right_2f",
+    "circle_cw_2f", "circle_ccw_2f",
+)  # fmt: skip
+"""What the page's mouse can draw (pinches need the wheel's spread, not a stroke)."""
+DENSE_PERIOD_S = 0.008  # a quiet page: a pointer sample every 8 ms
+SPARSE_SAMPLES = (3, 13)  # a busy page: this many samples per stroke
+MOUSE_FORCE_N = 0.2 + 2.8 * 0.35  # the page's force at the slider's default pressure
+PRESS_RATE = 4.0  # pressure per second, as the page ramps Shift / the wheel
+PRESS_MAX = 1.4  # the page's firm press (4.1 N)
+HAND_GAP_MM = 18.0  # the page's default two-finger hand
+HEARTBEAT_S = 0.25  # the page repeats resting fingers this often
+
+
+def _mouse_path(name: str, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A mouse-drawn ``name``: times (s) and centre positions (mm) of the hand, and the
+    pressure (0-1) along the stroke, with a bell-shaped speed profile."""
+    if name == "push":
+        rise = (PRESS_MAX - 0.35) / PRESS_RATE
+        t = np.arange(0.0, 0.3 + rise + 1e-9, 0.004)
+        pressure = np.clip(0.35 + PRESS_RATE * (t - 0.3), 0.35, PRESS_MAX)
+        return t, np.tile([50.0, 70.0], (len(t), 1)), pressure
+    if name.startswith("circle"):
+        radius = rng.uniform(14.0, 26.0)
+        turns_per_s = rng.uniform(1.0, 2.6)
+        turns = rng.uniform(1.2, 2.0)
+        duration = turns / turns_per_s
+        t = np.arange(0.0, duration + 1e-9, 0.004)
+        sign = 1.0 if name == "circle_cw_2f" else -1.0  # y grows downward: + is clockwise
+        angle = sign * 2 * np.pi * turns * minimum_jerk(len(t), 0.0) ** 1.0
+        centre = np.array([50.0, 70.0])
+        xy = centre + radius * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+        return t, xy, np.full(len(t), 0.35)
+    length = rng.uniform(40.0, 90.0)
+    speed = rng.uniform(70.0, 250.0)  # mm/s on average
+    duration = length / speed
+    t = np.arange(0.0, duration + 1e-9, 0.004)
+    direction = name.removesuffix("_2f").removeprefix("swipe_")
+    unit = {"up": (0, -1), "down": (0, 1), "left": (-1, 0), "right": (1, 0)}[direction]
+    start = np.array([50.0, 70.0]) - np.array(unit) * length / 2
+    xy = start + np.outer(minimum_jerk(len(t)), np.array(unit) * length)
+    return t, xy, np.full(len(t), 0.35)
+
+
+def _mouse_draw(client: _Client, name: str, sparse: bool, rng: np.random.Generator) -> float:
+    """Send ``name`` as the page sends a mouse: the press, the stroke's pointer samples
+    (every :data:`DENSE_PERIOD_S`, or 3-13 of them), the hand resting 0.6 s (with the
+    page's heartbeat), the lift; returns the wall time of the press."""
+    t, xy, pressure = _mouse_path(name, rng)
+    fingers = 2 if name.endswith("_2f") else 1
+    if sparse and name != "push":  # the press, a few samples at uneven times, the end
+        n = int(rng.integers(SPARSE_SAMPLES[0], SPARSE_SAMPLES[1] + 1))
+        picks = np.sort(rng.uniform(t[0], t[-1], size=n - 1))
+        index = np.unique(np.searchsorted(t, np.concatenate([[t[0]], picks, [t[-1]]])))
+        index = np.minimum(index, len(t) - 1)
+    else:
+        period = DENSE_PERIOD_S if not sparse else 0.05
+        index = np.unique(np.searchsorted(t, np.arange(t[0], t[-1] + 1e-9, period)))
+        index = np.minimum(np.concatenate([index, [len(t) - 1]]), len(t) - 1)
+
+    def tips(k: int) -> list[dict]:
+        force = 0.2 + 2.8 * float(pressure[k])
+        x, y = float(xy[k, 0]), float(xy[k, 1])
+        if fingers == 1:
+            return [{"id": 1, "x_mm": x, "y_mm": y, "force_n": force}]
+        return [{"id": 10 + i, "x_mm": x + dx, "y_mm": y, "force_n": force}
+                for i, dx in enumerate((-HAND_GAP_MM / 2, HAND_GAP_MM / 2))]  # fmt: skip
+
+    t0 = time.perf_counter()
+    for k in index:
+        time.sleep(max(0.0, t0 + t[k] - time.perf_counter()))
+        client.send({"type": "touch", "t": t0 + float(t[k]), "touches": tips(int(k))})
+    end = t0 + float(t[-1])
+    for rest in np.arange(HEARTBEAT_S, REST_S + 1e-9, HEARTBEAT_S):
+        time.sleep(max(0.0, end + rest - time.perf_counter()))
+        client.send({"type": "touch", "t": end + float(rest), "touches": tips(len(t) - 1)})
+    time.sleep(max(0.0, end + REST_S - time.perf_counter()))
+    client.send({"type": "touch", "t": end + REST_S, "touches": []})
+    return t0
+
+
+def _commands_shown(client: _Client, since: float) -> list[str]:
+    """The distinct commands the page showed since ``since``, in order."""
+    shown: list[str] = []
+    for _, state, _ in client.since(since):
+        command = state["recognition"]["command"]
+        if command and (not shown or shown[-1] != command):
+            shown.append(command)
+    return shown
+
+
 def _first_command(client: _Client, since: float) -> tuple[str | None, float | None]:
     for t, state, _ in client.since(since):
         if state["recognition"]["command"]:
@@ -204,6 +336,8 @@ def run_dashboard_benchmark(
     gesture_rounds: int = 0,
     seed: int = 0,
     gestures: tuple[str, ...] = GESTURE_NAMES,
+    mouse_rounds: int = 0,
+    mouse_gestures: tuple[str, ...] = MOUSE_GESTURES,
 ) -> DashboardBenchResult:
     def opener(skin: str, robot: str):
         return open_session(skin, robot, model)
@@ -258,6 +392,16 @@ def run_dashboard_benchmark(
                     result.drawn.setdefault(name, []).append(first)
                     if first == name and latency is not None:
                         result.drawn_latency_ms.setdefault(name, []).append(latency)
+            result.mouse_rounds = mouse_rounds
+            for _ in range(mouse_rounds):
+                client.send({"type": "command", "cmd": "home"})  # pushes walk the arm back
+                time.sleep(4.0)
+                for name in mouse_gestures:
+                    for sampling in ("dense", "sparse"):
+                        start = _mouse_draw(client, name, sampling == "sparse", rng)
+                        time.sleep(1.0)  # the command ends, the arm settles
+                        shown = _commands_shown(client, start)
+                        result.mouse.setdefault(sampling, {}).setdefault(name, []).append(shown)
             result.swipes = swipes
             result.recognised, result.moved = len(command_ms), len(motion_ms)
             if command_ms:
