@@ -231,8 +231,7 @@ class SafetyLayer(Robot):
         if scale < 1.0 - 1e-6:
             cap = 1000 * self.limits.max_linear_speed
             held.append(f"speed cap: TCP speed limited to {cap:.0f} mm/s")
-        turning = float(np.linalg.norm(asked[3:]))
-        if turning > 1e-9 and float(np.linalg.norm(sent[3:])) < turning * (1.0 - 1e-6):
+        if not np.allclose(capped[3:], asked[3:], rtol=1e-9, atol=1e-12):
             cap = math.degrees(self.limits.max_angular_speed)
             held.append(f"speed cap: rotation limited to {cap:.0f} deg/s")
         for axis, name in enumerate("xyz"):
@@ -456,9 +455,10 @@ class SafetyLayer(Robot):
         q = np.asarray(state.q, dtype=float)
         safe = self._within_caps(command, q)
         stopping = self.model.stop_time(safe) / 2.0  # distance = speed x this
-        if np.any(safe[:3]) or np.any(safe[3:]):
-            safe = self._within_box(safe, q, state.tcp.position, box_horizon + stopping)
-            safe = self._within_caps(safe, q)  # a wall may have turned a component inward
+        if np.any(safe):
+            boxed = self._within_box(safe, q, state.tcp.position, box_horizon + stopping)
+            if not np.array_equal(boxed, safe):  # a wall may have turned a component inward
+                safe = self._within_caps(boxed, q)
         refusal = self._joint_refusal(safe, state, joint_horizon + stopping)
         if refusal is not None:
             if refusal != self._refusing:
@@ -510,7 +510,7 @@ class SafetyLayer(Robot):
         reach = margin + limits.max_speed * horizon  # where a refusal can come from
         near = (q > limits.upper - reach) | (q < limits.lower + reach)
         if self._jacobian is not None:
-            dq = np.linalg.lstsq(np.asarray(self._jacobian(q), dtype=float), twist, rcond=1e-6)[0]
+            dq = self.model.joint_velocities(q, twist)
             dq = np.clip(dq, -limits.max_speed, limits.max_speed)
         else:
             dq = np.asarray(state.dq, dtype=float)
