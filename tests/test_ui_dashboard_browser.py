@@ -359,3 +359,112 @@ def test_on_a_tablet_or_phone_the_page_fits_and_stop_stays_in_reach(
         assert _wait_for(page, "window.wovenskin.state.safety.user_stopped", 5.0)
     finally:
         context.close()
+
+
+def test_at_1440x900_the_person_buttons_are_in_view_and_idle_says_no_command(page) -> None:
+    last = page.locator("#perform button").last.bounding_box()
+    panel = page.locator("#skin-panel").bounding_box()
+    assert last["y"] + last["height"] <= min(900, panel["y"] + panel["height"])  # no scrolling
+    assert page.evaluate("document.getElementById('skin-panel').scrollHeight") <= page.evaluate(
+        "document.getElementById('skin-panel').clientHeight"
+    )
+    assert page.inner_text("#command") == "no command"  # not "-" twice
+    assert page.inner_text("#action") == ""
+    assert "Shift" in page.inner_text("#help") and "wheel" in page.inner_text("#help")
+    assert _wait_for(page, "window.wovenskin.patchArrows", 5.0)  # swipe directions on the patch
+    arrows = page.evaluate("window.wovenskin.patchArrows")
+    up, right = np.asarray(arrows["up"]), np.asarray(arrows["right"])
+    assert abs(np.linalg.norm(up) - 1) < 1e-3 and abs(float(up @ right)) < 0.05
+    _save(page, "dashboard-1440x900.png")
+
+
+@pytest.mark.parametrize("how", ["shift", "wheel"])
+def test_a_mouse_can_push_by_pressing_harder(page, how: str) -> None:
+    """A mouse has no pressure: held still, Shift or the wheel (one finger) presses harder,
+    ramped as people perform `push` (0.15-0.4 s)."""
+    cx, cy = _centre(page)
+    page.mouse.move(cx, cy)
+    page.mouse.down()
+    time.sleep(0.3)
+    if how == "shift":
+        page.keyboard.down("Shift")
+    else:
+        for _ in range(5):  # 5 notches up: 0.35 -> 1.4
+            page.mouse.wheel(0, -100)
+            time.sleep(0.03)
+    try:
+        recognised = _wait_for(page, "window.wovenskin.state.recognition.command", 3.0)
+        recognition = _state(page)["recognition"]
+        command = recognition["command"]
+        assert _wait_for(page, "window.wovenskin.mousePressure > 1.3", 2.0)  # ramped up
+    finally:
+        if how == "shift":
+            page.keyboard.up("Shift")
+        page.mouse.up()
+    samples = page.evaluate("window.wovenskin.pressSamples")
+    assert recognised and command == "push", f"command {command!r}, {recognition}, {samples}"
+    assert page.problems == []
+
+
+def test_a_sparsely_sampled_mouse_swipe_is_one_finger(page) -> None:
+    """A busy page delivers a stroke as a few pointer samples (here 6, 60 ms apart): the
+    virtual skin rebuilds the fingertip's path and the swipe stays one-fingered."""
+    box = page.locator("#skin").bounding_box()
+    y = box["y"] + box["height"] * 0.5
+    x0, x1 = box["x"] + box["width"] * 0.85, box["x"] + box["width"] * 0.2  # 65 mm left
+    page.mouse.move(x0, y)
+    page.mouse.down()
+    commands, tops = set(), []
+    for k in range(1, 7):
+        time.sleep(0.06)
+        page.mouse.move(x0 + (x1 - x0) * k / 6, y)
+    started = time.monotonic()
+    while time.monotonic() - started < 2.0:  # resting: collect every command shown
+        recognition = _state(page)["recognition"]
+        if recognition["command"]:
+            commands.add(recognition["command"])
+        tops.append((recognition["top"][0], recognition["unsure"]))
+        time.sleep(0.03)
+    page.mouse.up()
+    assert commands == {"swipe_left"}, f"commands {commands}, recogniser {tops[::4]}"
+    assert page.problems == []
+
+
+@pytest.fixture()
+def boxed_page(browser, tmp_path):
+    """The page on a session whose workspace box floor lies 15 mm below the home TCP."""
+    from wovenskin.control.safety import SafetyLimits
+
+    floor = 0.32105 - 0.015  # the simulated TM5-900's home TCP z, less 15 mm
+
+    def opener(skin: str, robot: str):
+        limits = SafetyLimits(workspace_lower=np.array([-0.8, -0.8, floor]))
+        return open_session(skin, robot, poses=tmp_path / "poses.toml", limits=limits)
+
+    runner = DashboardRunner(opener, "sim:auto=0,seed=11", "sim", record_dir=tmp_path / "rec")
+    server = BackgroundServer(runner)
+    server.start()
+    context = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = context.new_page()
+    page.goto(server.url)
+    page.wait_for_function("window.wovenskin && window.wovenskin.received > 3", timeout=20000)
+    page.wait_for_function("!window.wovenskin.state.skin.calibrating", timeout=20000)
+    yield page
+    context.close()
+    server.stop()
+
+
+def test_the_command_panel_says_which_limit_holds_the_arm(boxed_page) -> None:
+    page = boxed_page
+    _swipe_up(page)  # swipe_up lowers the tool from home: onto the box floor, 15 mm down
+    try:
+        held = _wait_for(
+            page, "document.getElementById('holding').textContent.includes('workspace box')", 8.0
+        )
+        text = page.inner_text("#holding")
+        _save(page, "dashboard-held-by-box.png")
+    finally:
+        page.mouse.up()
+    assert held, f"holding {text!r}, command {_state(page)['recognition']['command']!r}"
+    assert "z at its lower limit" in text
+    assert _wait_for(page, "document.getElementById('holding').textContent === ''", 5.0)

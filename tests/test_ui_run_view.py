@@ -16,7 +16,7 @@ from wovenskin.ui.run_view import handle_keys, render_run, run_with_view, termin
 def session_on_replay(tmp_path, **kwargs):
     stream = simulate_stream(5.0, seed=4, gestures=["swipe_left"], invalid_fraction=0.0)
     path = tmp_path / "s.npz"
-    write_labelled_stream(path, stream)
+    write_labelled_stream(path, stream, overwrite=True)  # a test may open two sessions
     return open_session(
         f"replay:{path}", "sim", recognizer=ContactMeans("swipe_left"), fast_replay=True,
         poses=tmp_path / "poses.toml", **kwargs,
@@ -76,3 +76,26 @@ def test_a_viewed_run_to_the_end_and_one_quit_by_key(tmp_path) -> None:
     result = run_with_view(session, console, read_keys=lambda: next(presses, ""))
     session.close()
     assert result.ended == "quit with the q key"
+
+
+def test_the_screen_says_what_holds_the_arm_back_and_when_the_recogniser_is_unsure(
+    tmp_path,
+) -> None:
+    import numpy as np
+
+    from wovenskin.control.safety import SafetyLimits
+
+    home_tcp = np.array([0.5175, -0.1223, 0.32105])  # the simulated TM5-900's starting TCP
+    limits = SafetyLimits(workspace_lower=home_tcp - 0.002, workspace_upper=home_tcp + 0.002)
+    session = session_on_replay(tmp_path, limits=limits)  # any swipe meets a face at once
+    session.start()
+    held = ""
+    while not session.state.ended and not held:
+        session.step()
+        text = screen_text(render_run(session))
+        if "held back" in text:
+            held = text
+    session.close()
+    assert "workspace box" in held
+    session.state.unsure = "unsure: swipe_left 0.55 / swipe_left_2f 0.40"
+    assert "unsure: swipe_left 0.55 / swipe_left_2f 0.40" in screen_text(render_run(session))

@@ -21,13 +21,12 @@ from typing import Any
 
 import numpy as np
 from rich.console import Console, Group
-from rich.live import Live
 from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
 from wovenskin.control.session import ControlSession, SessionResult
-from wovenskin.ui.terminal import heatmap
+from wovenskin.ui.terminal import heatmap, live_screen
 
 STOP_KEY = " "
 QUIT_KEYS = ("q", "Q")
@@ -98,7 +97,7 @@ def run_with_view(
         read = read_keys or terminal_read
         next_draw = time.monotonic()
         try:
-            with Live(console=console, auto_refresh=False, transient=False) as live:
+            with live_screen(console, auto_refresh=False, transient=False) as live:
 
                 def keep_going() -> bool:
                     nonlocal next_draw
@@ -152,7 +151,13 @@ def _status(session: ControlSession) -> Table:
         table.add_row("command", Text(f"{st.gesture}  ({since:4.1f} s)", style="bold green"))
     else:
         table.add_row("command", "none")
+    unsure = getattr(st, "unsure", "")
+    if unsure:
+        table.add_row("", Text(unsure, style="italic yellow"))
     table.add_row("robot", _robot_line(session))
+    holding = session.holding() if hasattr(session, "holding") else ()
+    if holding:  # which limit holds the arm back, for as long as it holds
+        table.add_row("held back", Text("\n".join(line[:70] for line in holding), style="yellow"))
     robot = st.robot
     if robot is not None:
         x, y, z = 1000 * np.asarray(robot.tcp.position)

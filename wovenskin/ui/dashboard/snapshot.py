@@ -104,6 +104,7 @@ def recognition_part(session: Any) -> dict:
         "command": state.gesture,
         "command_for_s": round(session.now - since, 2) if state.gesture and since else 0.0,
         "action": state.action,
+        "unsure": getattr(state, "unsure", ""),
     }
 
 
@@ -162,6 +163,7 @@ def build_snapshot(
             "stopped": bool(safety.stopped),
             "user_stopped": bool(session.user_stopped),
             "stops": stops,
+            "holding": list(session.holding()) if hasattr(session, "holding") else [],
         },
         "timeline": timeline.recent(float(session.now)),
         "messages": list(session.state.messages),

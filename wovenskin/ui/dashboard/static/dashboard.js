@@ -199,10 +199,40 @@ function pointerMm(event) {
   };
 }
 
-function pressureOf(event) { // the device's pressure where it reports one, else the slider
+function pressureOf(event, current) { // the device's pressure where it reports one; a mouse
+  // keeps its own (the slider's, raised by the wheel or Shift while pressing: see pressMouse)
   const fromDevice = event.pointerType !== "mouse" && event.pressure > 0 && event.pressure !== 0.5;
-  return fromDevice ? event.pressure : Number($("pressure").value);
+  if (fromDevice) return event.pressure;
+  return current ?? Number($("pressure").value);
 }
+
+// A mouse cannot press harder by itself: while it presses, the wheel (one finger) or the
+// Shift key (any hand) sets a firmer pressure, which the page ramps toward at PRESS_RATE
+// (a firm press from the slider's 0.35 takes ~0.25 s: how people perform `push`). Releasing
+// Shift, or the wheel the other way, eases it back.
+const PRESS_RATE = 4; // pressure units per second: 0.35 -> 1.4 in 0.26 s
+const PRESS_MAX = 1.4; // a firm press: 4.1 N, beyond the slider's 1 (3 N), as people push
+let pressTarget = null; // null: the slider's pressure
+let shiftPressing = false;
+function mousePointer() { for (const p of pointers.values()) if (p.mouse) return p; return null; }
+function pressMouse(target) { pressTarget = target === null ? null : Math.max(0.05, Math.min(PRESS_MAX, target)); }
+let pressTick = null; // when the ramp last stepped (ms): a busy page ticks far less often
+setInterval(() => { // ramp a pressing mouse's pressure toward its target by the time elapsed
+  const p = mousePointer();
+  const now = performance.now();
+  const last = pressTick;
+  pressTick = now;
+  if (!p || last === null) return;
+  const target = shiftPressing ? PRESS_MAX : (pressTarget ?? Number($("pressure").value));
+  if (Math.abs(p.pressure - target) < 1e-3) return;
+  const step = PRESS_RATE * Math.min(0.25, (now - last) / 1000);
+  p.pressure = p.pressure + Math.max(-step, Math.min(step, target - p.pressure));
+  page.mousePressure = p.pressure;
+  page.pressSamples = [...(page.pressSamples || []).slice(-40), [Math.round(now), Number(p.pressure.toFixed(2))]];
+  sendTouches([{ t: now / 1000, touches: touchList() }]);
+}, 16);
+window.addEventListener("keydown", (event) => { if (event.key === "Shift") shiftPressing = true; });
+window.addEventListener("keyup", (event) => { if (event.key === "Shift") shiftPressing = false; });
 
 const forceOf = (pressure) => 0.2 + 2.8 * pressure; // N: light touch .. firm press
 
@@ -243,7 +273,7 @@ const sample = (event) => ({ t: event.timeStamp / 1000, touches: touchList() });
 skinCanvas.addEventListener("pointerdown", (event) => {
   event.preventDefault();
   skinCanvas.setPointerCapture(event.pointerId);
-  if (event.pointerType === "mouse") { spread = null; hover = null; }
+  if (event.pointerType === "mouse") { spread = null; hover = null; pressTarget = null; }
   pointers.set(event.pointerId, { ...pointerMm(event), pressure: pressureOf(event), mouse: event.pointerType === "mouse" });
   sendTouches([sample(event)]);
 });
@@ -256,7 +286,7 @@ skinCanvas.addEventListener("pointermove", (event) => {
   const events = event.getCoalescedEvents ? event.getCoalescedEvents() : [];
   const samples = [];
   for (const e of events.length ? events : [event]) { // every sample the device gave
-    Object.assign(p, pointerMm(e), { pressure: pressureOf(e) });
+    Object.assign(p, pointerMm(e), { pressure: pressureOf(e, p.mouse ? p.pressure : null) });
     samples.push(sample(e));
   }
   sendTouches(samples.slice(-64));
@@ -284,7 +314,13 @@ window.addEventListener("blur", liftAll);
 document.addEventListener("visibilitychange", () => { if (document.hidden) liftAll(); });
 skinCanvas.addEventListener("wheel", (event) => { // hovering: spread the hand; pressing: pinch
   const fingers = Number($("fingers").value);
-  if (fingers === 1) return;
+  if (fingers === 1) { // one finger pressing: the wheel presses harder (up) or lighter (down)
+    const p = mousePointer();
+    if (!p) return;
+    event.preventDefault();
+    pressMouse((pressTarget ?? p.pressure) + (event.deltaY < 0 ? 0.25 : -0.25));
+    return;
+  }
   event.preventDefault();
   const [low, high] = SPREAD[fingers];
   const next = Math.max(low, Math.min(high, handSpread() + (event.deltaY > 0 ? -3 : 3)));
@@ -307,9 +343,14 @@ function buildBars(classes) {
 
 function updateRecognition(state) {
   const rec = state.recognition;
-  $("command").textContent = rec.command ? `${rec.command}  ${rec.command_for_s.toFixed(1)} s` : "-";
+  $("command").textContent = rec.command ? `${rec.command}  ${rec.command_for_s.toFixed(1)} s` : "no command";
+  $("command").classList.toggle("idle", !rec.command);
   $("command").dataset.command = rec.command || "";
-  $("action").textContent = rec.action;
+  $("action").textContent = rec.action && rec.action !== "-" ? rec.action : ""; // idle: nothing twice
+  $("unsure").textContent = rec.unsure || "";
+  const holding = (state.safety && state.safety.holding) || [];
+  $("holding").textContent = holding.length ? `held back: ${holding.join("; ")}` : "";
+  $("holding").dataset.holding = holding.join("\n");
   const rows = $("bars").children;
   for (const row of rows) {
     const k = rec.classes.indexOf(row.dataset.name);
@@ -329,33 +370,43 @@ function commandColour(name) {
   return COMMAND_COLOURS[name];
 }
 
+// Labels never overlap: a command's name is drawn only where its bar has room for it
+// (clipped to the bar, and after the previous label's end), a stop's only clear of the last.
 function drawTimeline(state) {
   const canvas = $("timeline");
   const dpr = window.devicePixelRatio || 1;
   canvas.width = Math.round(canvas.clientWidth * dpr); canvas.height = Math.round(54 * dpr);
   const ctx = canvas.getContext("2d"), W = canvas.width, H = canvas.height;
   ctx.clearRect(0, 0, W, H);
-  const span = 30, now = state.t, x = (t) => W * (1 - (now - t) / span);
-  const entries = state.timeline;
-  let open = null;
+  const span = 30, now = state.t, x = (t) => Math.max(0, W * (1 - (now - t) / span));
   ctx.font = `${10 * dpr}px system-ui`;
-  const commands = entries.filter((e) => e.kind === "command");
-  for (const e of commands) {
-    if (open && open.name) {
-      ctx.fillStyle = commandColour(open.name);
-      ctx.fillRect(x(open.t), 6 * dpr, Math.max(2, x(e.t) - x(open.t)), 22 * dpr);
-      ctx.fillStyle = "#fff"; ctx.fillText(open.name, x(open.t) + 2, 20 * dpr);
+  const bars = [];
+  const commands = state.timeline.filter((e) => e.kind === "command");
+  commands.forEach((e, k) => {
+    const end = k + 1 < commands.length ? x(commands[k + 1].t) : W;
+    if (e.name) bars.push({ name: e.name, x0: x(e.t), x1: end });
+  });
+  let labelEnd = -Infinity;
+  page.timelineLabels = [];
+  for (const bar of bars) {
+    ctx.fillStyle = commandColour(bar.name);
+    ctx.fillRect(bar.x0, 6 * dpr, Math.max(2, bar.x1 - bar.x0), 22 * dpr);
+    const width = ctx.measureText(bar.name).width;
+    const at = Math.max(bar.x0 + 2, labelEnd + 4 * dpr);
+    if (at + width <= bar.x1 - 2) {
+      ctx.fillStyle = "#fff"; ctx.fillText(bar.name, at, 20 * dpr);
+      page.timelineLabels.push([at, at + width]);
+      labelEnd = at + width;
     }
-    open = e;
   }
-  if (open && open.name) {
-    ctx.fillStyle = commandColour(open.name);
-    ctx.fillRect(x(open.t), 6 * dpr, Math.max(2, W - x(open.t)), 22 * dpr);
-    ctx.fillStyle = "#fff"; ctx.fillText(open.name, x(open.t) + 2, 20 * dpr);
-  }
-  for (const e of entries.filter((item) => item.kind === "stop")) {
-    ctx.fillStyle = "#e5484d"; ctx.fillRect(x(e.t) - dpr, 0, 2 * dpr, H);
-    ctx.fillText("stop", x(e.t) + 3, 44 * dpr);
+  let stopEnd = -Infinity;
+  const stopWidth = ctx.measureText("stop").width;
+  for (const e of state.timeline.filter((item) => item.kind === "stop")) {
+    ctx.fillStyle = "#e5484d"; ctx.fillRect(x(e.t) - dpr, 0, 2 * dpr, 34 * dpr);
+    if (x(e.t) + 3 > stopEnd + 4 * dpr && x(e.t) + 3 + stopWidth < W - 2) {
+      ctx.fillText("stop", x(e.t) + 3, 40 * dpr);
+      stopEnd = x(e.t) + 3 + stopWidth;
+    }
   }
   ctx.fillStyle = "#8b93a1"; ctx.fillText("-30 s", 2, H - 2); ctx.fillText("now", W - 24 * dpr, H - 2);
 }
@@ -468,6 +519,13 @@ const arm = (() => {
   const linear = new THREE.ArrowHelper(new THREE.Vector3(1, 0, 0), new THREE.Vector3(), 0.1, 0x4aa3ff, 0.035, 0.02);
   const angular = new THREE.ArrowHelper(new THREE.Vector3(1, 0, 0), new THREE.Vector3(), 0.1, 0xc77dff, 0.035, 0.02);
   scene.add(linear, angular);
+  // On the skin patch: where a swipe_up (green, toward row 0) and a swipe_right (orange,
+  // toward the last column) stroke go on the skin, so its directions read off the arm.
+  const patchUp = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.06, 0x2fb36d, 0.018, 0.012);
+  const patchRight = new THREE.ArrowHelper(new THREE.Vector3(1, 0, 0), new THREE.Vector3(), 0.045, 0xf2a93b, 0.015, 0.01);
+  patchUp.name = "swipe_up direction"; patchRight.name = "swipe_right direction";
+  patchUp.visible = patchRight.visible = false;
+  scene.add(patchUp, patchRight);
 
   function geometryOf(shape) {
     const s = shape.size;
@@ -577,6 +635,12 @@ const arm = (() => {
       position.needsUpdate = true;
       patch.geometry.computeBoundingSphere();
       texture.needsUpdate = true;
+      const centre = new THREE.Vector3().addVectors(tr, bl).multiplyScalar(0.5).addScaledVector(lift, 4);
+      const up = new THREE.Vector3().subVectors(tl, bl).normalize(); // toward row 0
+      const right = new THREE.Vector3().subVectors(tr, tl).normalize(); // toward the last column
+      patchUp.position.copy(centre); patchUp.setDirection(up); patchUp.visible = true;
+      patchRight.position.copy(centre); patchRight.setDirection(right); patchRight.visible = true;
+      page.patchArrows = { up: up.toArray(), right: right.toArray() };
     }
     const [x, y, z] = robot.tcp.pos, [qw, qx, qy, qz] = robot.tcp.quat;
     updateBox(robot.tcp.pos);
