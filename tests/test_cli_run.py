@@ -120,7 +120,13 @@ def test_run_refuses_bad_options_in_one_line(model_dir, stream_file, tmp_path) -
 def test_pose_set_and_show(tmp_path) -> None:
     poses = tmp_path / "poses.toml"
     result = invoke("pose", "show", "--poses", poses)
-    assert result.exit_code == 0 and "no stored poses" in result.stdout
+    assert result.exit_code == 0 and "no poses stored" in result.stdout
+    # Go home / Go to initial work from the simulated arm's built-in poses: shown, with where
+    # they come from, not just "no poses"
+    assert "built-in poses of the simulated TM5-900" in result.stdout
+    assert "tm5_900.py" in result.stdout
+    assert "  home: joints [0.0, 0.0, 0.0, 0.0, 0.0, 0.0] deg" in result.stdout
+    assert "  initial: joints [0.0, 0.0, 90.0, 0.0, 90.0, 0.0] deg" in result.stdout
     result = invoke("pose", "set", "initial", "--robot", "sim", "--poses", poses)
     assert result.exit_code == 0, result.output
     assert result.stdout.startswith("stored initial: joints [") and "TCP x" in result.stdout
@@ -128,7 +134,8 @@ def test_pose_set_and_show(tmp_path) -> None:
     result = invoke("pose", "show", "--poses", poses)
     assert result.exit_code == 0 and result.stdout.startswith("initial: joints [")
     assert "0.0, 0.0, 90.0, 0.0, 90.0, 0.0] deg" in result.stdout  # the sim arm's ready pose
-    assert "home" not in result.stdout
+    assert f"stored in {poses}" in result.stdout
+    assert "  home: joints" in result.stdout and "  initial:" not in result.stdout  # built-in
     one_line_error(invoke("pose", "set", "initial", "--robot", "tm", "--poses", poses), "robot")
     one_line_error(invoke("pose", "set", "work", "--poses", poses), "unknown pose name")
 

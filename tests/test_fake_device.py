@@ -184,3 +184,41 @@ def test_run_fake_device_streams_a_simulated_person_that_a_source_can_read():
     assert values.shape[1:] == (10, 10) and 1.0 < values.mean() < 200.0
     assert devices_run and devices_run[0].frames_sent >= 50
     assert "--skin 'serial:" in lines[1] and lines[-1].startswith("sent ")
+
+
+def test_the_simulated_person_rests_while_a_host_calibrates():
+    """A host sends START when it starts reading: the person keeps hands off for a second,
+    so the reader's calibration (its first 0.5 s) sees no touch wherever the loop was."""
+    from wovenskin.skin.fake_device import REST_ON_START_S, RestingPerson
+
+    rng = np.random.default_rng(0)
+    frames = 20.0 + rng.normal(0, 0.01, size=(400, 2, 2)).astype(np.float32)
+    frames[100:] += 5.0  # a touch from frame 100 on; frames 0-99 are idle
+    person = RestingPerson(frames, 100, 200.0)
+    assert person(150, 0.75).mean() > 24.0  # mid-touch
+    person.rest()  # START arrives
+    resting = np.stack([person(k, k / 200.0) for k in range(151, 151 + int(REST_ON_START_S * 200))])
+    assert resting.max() < 21.0
+    assert person(151 + int(REST_ON_START_S * 200), 0.0).mean() > 24.0  # then the loop goes on
+
+
+def test_sigterm_ends_fake_device_and_removes_its_folder(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    process = subprocess.Popen(
+        [sys.executable, "-m", "wovenskin.cli", "fake-device"],
+        stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        first = process.stdout.readline()
+        port = first.rsplit(" on ", 1)[1].strip()
+        assert os.path.exists(port) and "\n" not in port
+        process.send_signal(signal.SIGTERM)
+        process.wait(timeout=WAIT_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert not os.path.exists(os.path.dirname(port))

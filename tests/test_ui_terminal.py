@@ -49,3 +49,34 @@ def test_status_panel_renders_counters():
     console.print(skin_panel(heatmap(np.zeros((10, 10))), table, "t", ["hello"]))
     out = console.export_text()
     assert "199.5 Hz" in out and "crc" in out and "hello" in out
+
+
+def test_view_quits_on_q_as_run_does() -> None:
+    import io
+
+    from rich.console import Console
+
+    from wovenskin.ui.view import run_view
+
+    keys = iter(["", "", "q"])
+    console = Console(file=io.StringIO(), width=120)
+    result = run_view("sim:speed=0,auto=0", seconds=30.0, fps=25.0, console=console,
+                      read_keys=lambda: next(keys, "q"))  # fmt: skip
+    assert result.seconds < 10.0  # q ended it, not the 30 s
+    assert "q quits" in console.file.getvalue()
+
+
+def test_a_live_screen_ends_its_line_when_not_on_a_terminal() -> None:
+    import io
+
+    from rich.console import Console
+    from rich.text import Text
+
+    from wovenskin.ui.terminal import live_screen
+
+    console = Console(file=io.StringIO(), width=80, force_terminal=False)
+    with live_screen(console, auto_refresh=False) as live:
+        live.update(Text("simulated skin started"), refresh=True)
+    console.print("wrote p01.wsrec")
+    assert "startedwrote" not in console.file.getvalue()
+    assert console.file.getvalue().rstrip().endswith("started\nwrote p01.wsrec")

@@ -8,6 +8,7 @@ bad option, an unplugged device) end with one red line and exit code 2, never a 
 from __future__ import annotations
 
 import functools
+import sys
 from pathlib import Path
 
 import typer
@@ -23,8 +24,32 @@ app = typer.Typer(
 bench_app = typer.Typer(help="Benchmarks: print measured figures and ratios.", no_args_is_help=True)
 app.add_typer(bench_app, name="bench")
 
-console = Console()
-err_console = Console(stderr=True)
+# Not on a terminal (a pipe, a file, a script) lines are never wrapped at 80 columns: a
+# path or a message stays one line that a script can read.
+console = Console(soft_wrap=not sys.stdout.isatty())
+err_console = Console(stderr=True, soft_wrap=not sys.stderr.isatty())
+
+
+def _flags_without_type() -> None:
+    """Show on/off options as flags in ``--help``: typer 0.2x labels every flag (``--help``,
+    ``--version``, ``--overwrite``) ``<bool>``, as if it took a value.  Flags get no type
+    column; every other option keeps typer's own."""
+    from typer.core import TyperOption
+
+    original = TyperOption.display_type_rich
+    if getattr(original, "_wovenskin", False):
+        return
+
+    def display_type_rich(self, ctx):  # noqa: ANN001 - typer's signature
+        if getattr(self, "is_flag", False):
+            return None
+        return original(self, ctx)
+
+    display_type_rich._wovenskin = True  # type: ignore[attr-defined]
+    TyperOption.display_type_rich = display_type_rich  # type: ignore[method-assign]
+
+
+_flags_without_type()
 
 SKIN_HELP = "Skin source: sim, serial:PORT[?format=text&order=col-major] or replay:FILE[?speed=2]."
 
@@ -1172,15 +1197,43 @@ def pose_set(
 def pose_show(
     poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
 ) -> None:
-    """Show the stored poses."""
+    """Show the stored poses and, where none is stored, the simulated arm's built-in ones."""
     from wovenskin.control.poses import PoseStore
 
     store = PoseStore.load(poses)
     for name in store.names:
         pose = store.get(name)
         console.print(f"{name}: {_pose_line(pose.q, pose.tcp)}", highlight=False)
-    if not store.names:
-        console.print(f"no stored poses in {store.path} (store one: wovenskin pose set initial)")
+    if store.names:
+        console.print(f"stored in {store.path}", highlight=False)
+    else:
+        console.print(f"no poses stored in {store.path}", highlight=False)
+    missing = [name for name in ("home", "initial") if name not in store.names]
+    if missing:
+        console.print(
+            "built-in poses of the simulated TM5-900 (--robot sim), used by Go home / Go to "
+            "initial and the 5-finger pinches while none is stored (wovenskin/robots/sim/"
+            "tm5_900.py: HOME_Q, INITIAL_Q; a real arm needs `wovenskin pose set NAME`):",
+            highlight=False,
+        )
+        for name, (q, tcp) in _builtin_poses(missing).items():
+            console.print(f"  {name}: {_pose_line(q, tcp)}", highlight=False)
+
+
+def _builtin_poses(names: list[str]) -> dict:
+    """``{name: (q, tcp Pose)}`` of the simulated TM5-900's built-in home/initial poses."""
+    from scipy.spatial.transform import Rotation
+
+    from wovenskin.robots.base import Pose
+    from wovenskin.robots.sim import tm5_900
+
+    out = {}
+    for name in names:
+        q = tm5_900.HOME_Q if name == "home" else tm5_900.INITIAL_Q
+        transform = tm5_900.forward_kinematics(q)
+        x, y, z, w = Rotation.from_matrix(transform[:3, :3]).as_quat()
+        out[name] = (q, Pose(transform[:3, 3], [w, x, y, z]))
+    return out
 
 
 def _pose_line(q, tcp) -> str:
@@ -1231,17 +1284,27 @@ def bench_dashboard(
         2, help="Rounds of the 14 gestures drawn as on a touch screen (0: none)."
     ),
     seed: int = typer.Option(0, help="Seed of the simulated people who draw the gestures."),
+    mouse_rounds: int = typer.Option(
+        2,
+        help="Rounds of the gestures a mouse draws (swipes 40-90 mm at 70-250 mm/s, circles, "
+        "push), each densely and sparsely sampled (0: none).",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
-    """Dashboard page rate, touch -> command -> motion latency and the 14 gestures drawn as
-    on a touch screen, all over its WebSocket."""
+    """Dashboard page rate, touch -> command -> motion latency, the 14 gestures drawn as
+    on a touch screen and the gestures drawn with a mouse (dense and sparse pointer
+    samples, success per gesture), all over its WebSocket."""
 
     from wovenskin.bench.dashboard import run_dashboard_benchmark
 
-    if swipes < 1 or idle_seconds <= 0 or rounds < 0:
-        raise ValueError("--swipes must be >= 1, --idle-seconds positive, --rounds >= 0")
+    if swipes < 1 or idle_seconds <= 0 or rounds < 0 or mouse_rounds < 0:
+        raise ValueError(
+            "--swipes must be >= 1, --idle-seconds positive, --rounds and --mouse-rounds >= 0"
+        )
     with err_console.status("benchmarking the dashboard..."):
-        result = run_dashboard_benchmark(model, idle_seconds, swipes, ui_rate, rounds, seed)
+        result = run_dashboard_benchmark(
+            model, idle_seconds, swipes, ui_rate, rounds, seed, mouse_rounds=mouse_rounds
+        )
     _show_bench(result, json_out)
 
 

@@ -22,12 +22,13 @@ import logging
 import os
 import select
 import shutil
+import signal
 import tempfile
 import threading
 import time
 import tty
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -128,6 +129,7 @@ class FakeSkinDevice:
         info_enabled: bool = True,
         link_dir: str | None = None,
         history: int = 20000,
+        on_start: Callable[[], None] | None = None,
     ) -> None:
         if fmt not in ("binary", "text"):
             raise ValueError(f"format must be 'binary' or 'text', got {fmt!r}")
@@ -150,6 +152,7 @@ class FakeSkinDevice:
         self.stream_at_boot = stream_at_boot
         self.info_enabled = info_enabled
         self._frame_fn = self._as_frame_fn(frames, seed)
+        self._on_start = on_start  # called when a host sends START or RECALIBRATE
         self._rng = np.random.default_rng(seed + 7)
 
         self._link_dir = link_dir
@@ -434,10 +437,14 @@ class FakeSkinDevice:
             return
         if cmd.command == CommandId.START:
             self.streaming = True
+            if self._on_start is not None:
+                self._on_start()
         elif cmd.command == CommandId.STOP:
             self.streaming = False
         elif cmd.command == CommandId.RECALIBRATE:
             self._send_log("recalibrated")
+            if self._on_start is not None:
+                self._on_start()
         else:
             status = AckStatus.UNKNOWN_COMMAND
         self._tx += encode_message(AckMessage(cmd.seq, self._now_us(), cmd.command, status))
@@ -549,11 +556,14 @@ def run_fake_device(
     layout = layout or SkinLayout()
     length = loop_s if seconds is None else min(loop_s, max(seconds, 2.0))
     stream = simulate_stream(length, seed, layout=layout)
+    first_touch = float(np.min(stream.event_start_s)) if len(stream.event_start_s) else length
+    idle = int(max(0.0, first_touch - 0.2) * stream.sample_rate_hz)  # the hand still away
+    person = RestingPerson(stream.frames, idle, stream.sample_rate_hz)
     device = FakeSkinDevice(
-        stream.frames, stream.sample_rate_hz, layout, order, dtype, fmt, seed=seed
+        person, stream.sample_rate_hz, layout, order, dtype, fmt, seed=seed, on_start=person.rest
     )
-    say = console.print if console is not None else print
-    with device:
+    say = console.print if console is not None else print  # the CLI's never wraps off a tty
+    with device, _terminate_as_interrupt():
         spec = f"serial:{device.port}"
         if fmt == "text":
             spec += f"?format=text&skip=1&order={order}&rows={layout.rows}&cols={layout.cols}"
@@ -567,3 +577,54 @@ def run_fake_device(
                 )
     say(f"sent {device.frames_sent} frames")
     return device
+
+
+REST_ON_START_S = 1.0  # the simulated person rests this long when a host starts reading
+
+
+class RestingPerson:
+    """A looped simulated recording whose person keeps hands off while a host calibrates.
+
+    A reader calibrates on its first 0.5 s of frames (hands off); a person who never rests
+    put a gesture into that half second for most readers, so every ``view`` began with a
+    calibration warning.  :meth:`rest` (the device calls it on START and RECALIBRATE, i.e.
+    whenever a host starts reading or recalibrates) plays contact-free frames of the same
+    recording (its first, idle second) for :data:`REST_ON_START_S`, then the loop goes on.
+    """
+
+    def __init__(self, frames: np.ndarray, idle_frames: int, rate_hz: float) -> None:
+        self.frames = np.asarray(frames, dtype=np.float32)
+        self.idle_frames = max(1, min(int(idle_frames), len(self.frames)))
+        self.rate_hz = float(rate_hz)
+        self._rest_from: int | None = None  # the device's frame index when the rest began
+        self._rest_frames = int(round(REST_ON_START_S * self.rate_hz))
+        self._pending = False
+
+    def rest(self) -> None:
+        """Rest from the next frame on (called from the device's thread)."""
+        self._pending = True
+
+    def __call__(self, index: int, t_s: float) -> np.ndarray:
+        if self._pending:
+            self._pending, self._rest_from = False, index
+        if self._rest_from is not None and index - self._rest_from < self._rest_frames:
+            return self.frames[(index - self._rest_from) % self.idle_frames]
+        return self.frames[index % len(self.frames)]
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt() -> Iterator[None]:
+    """SIGTERM (``kill``, a service manager) ends the device as Ctrl-C does, so its
+    temporary port folder is removed; the previous handler comes back afterwards."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)

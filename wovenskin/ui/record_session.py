@@ -24,7 +24,6 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from rich.console import Console, Group
-from rich.live import Live
 from rich.panel import Panel
 from rich.text import Text
 
@@ -35,7 +34,7 @@ from wovenskin.recording.native import RecordingWriter
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.source import open_source
-from wovenskin.ui.terminal import heatmap
+from wovenskin.ui.terminal import heatmap, live_screen
 
 INVALID_PROMPT = "touch WITHOUT a gesture: tap, palm, grasp the link, brush past, 3-4 fingers"
 
@@ -141,7 +140,7 @@ def run_record_session(
         source.autonomous = False  # the simulated person performs only what is prompted
     live_skin.start()
     try:
-        with Live(console=console, auto_refresh=False) as live:
+        with live_screen(console, auto_refresh=False) as live:
             _Session(live_skin, plan, writer, live, messages, perform, summary).run()
     except KeyboardInterrupt:
         summary.aborted = "interrupted by the user (Ctrl-C)"

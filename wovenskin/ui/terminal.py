@@ -8,8 +8,13 @@ the user faces it.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
 import numpy as np
-from rich.console import Group
+from rich.console import Console, Group
+from rich.live import Live
 from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
@@ -129,3 +134,18 @@ def skin_panel(heat: Text, status: Table, title: str, messages: list[str]) -> Gr
     grid.add_row(heat, status)
     footer = Text("\n".join(messages[-4:]), style="dim")
     return Group(Panel(grid, title=title, expand=False), footer)
+
+
+@contextmanager
+def live_screen(console: Console, **options: Any) -> Iterator[Live]:
+    """rich's ``Live`` display whose last screen always ends its line.
+
+    On a terminal rich moves to a new line when the display stops; on anything else (a
+    pipe, a file) it does not, so the next output was glued to the last screen
+    ("...simulated skin startedwrote p01.wsrec").  Every live view goes through here."""
+    try:
+        with Live(console=console, **options) as live:
+            yield live
+    finally:
+        if not console.is_terminal:
+            console.line()

@@ -10,17 +10,17 @@ from __future__ import annotations
 
 import io
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from rich.console import Console
-from rich.live import Live
 
 from wovenskin.live import LiveSkin, RateMeter
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.skin.source import open_source
-from wovenskin.ui.terminal import heatmap, skin_panel, status_table
+from wovenskin.ui.terminal import heatmap, live_screen, skin_panel, status_table
 
 
 @dataclass
@@ -61,12 +61,17 @@ def run_view(
     config: ConditioningConfig | None = None,
     console: Console | None = None,
     snapshot: Path | None = None,
+    read_keys: Callable[[], str] | None = None,
 ) -> ViewResult:
-    """Show ``skin`` live until Ctrl-C, the end of a replay, or ``seconds`` elapse.
+    """Show ``skin`` live until ``q`` (as in ``run --view terminal``), Ctrl-C, the end of
+    a replay, or ``seconds`` elapse.
 
     ``full_scale`` is the relative change drawn brightest; ``None`` follows the signal.
     ``snapshot``: save the last screen drawn as an SVG file when the view ends.
+    ``read_keys`` returns the keys pressed since its last call (default: the terminal's).
     """
+    from wovenskin.ui.run_view import QUIT_KEYS, terminal_keys
+
     console = console or Console()
     source = open_source(skin)
     messages: list[str] = []
@@ -79,11 +84,17 @@ def run_view(
     period = 1.0 / fps
     live_skin.start()
     try:
-        with Live(console=console, auto_refresh=False, transient=False) as live:
+        with (
+            terminal_keys() as terminal_read,
+            live_screen(console, auto_refresh=False, transient=False) as live,
+        ):
+            read = read_keys or terminal_read
             next_draw = started
             while True:
                 now = time.monotonic()
                 if seconds is not None and now - started >= seconds:
+                    break
+                if any(key in QUIT_KEYS for key in read()):
                     break
                 out = live_skin.step(timeout=max(0.0, min(period, next_draw - now)))
                 if out is not None:
@@ -116,7 +127,7 @@ def _render(
 ):
     st = live_skin.state
     info = live_skin.info
-    extra = {"t": f"{st.t:8.2f} s", "full scale": f"{100 * full_scale:5.1f} %"}
+    extra = {"t": f"{st.t:8.2f} s", "full scale": f"{100 * full_scale:5.1f} %", "keys": "q quits"}
     label_of = getattr(live_skin.source, "current_label", None)
     if callable(label_of):
         extra["sim person"] = str(label_of() or "-")
