@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -39,6 +39,7 @@ class ArmModel:
     capabilities: RobotCapabilities
     assumed_stop_time_s: float  # used when the backend declares no stop profile
     missing: tuple[str, ...] = ()  # what the full checks need and the arm lacks
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)  # last q -> J, FK
 
     @classmethod
     def resolve(
@@ -85,11 +86,30 @@ class ArmModel:
         """Commands are capped at the caps divided by this (>= 1)."""
         return 1.0 + self.capabilities.tracking_error
 
+    def jacobian_at(self, q: np.ndarray) -> np.ndarray | None:
+        """The Jacobian at ``q`` (the last one is kept: a tick asks several times)."""
+        return self._cached("jacobian", self.jacobian, q)
+
+    def forward_at(self, q: np.ndarray) -> np.ndarray | None:
+        """The TCP pose at ``q`` (the last one is kept)."""
+        return self._cached("forward", self.forward, q)
+
+    def _cached(self, name: str, function: JointFunction | None, q: np.ndarray):
+        if function is None:
+            return None
+        q = np.asarray(q, dtype=float)
+        key = q.tobytes()
+        hit = self._cache.get(name)
+        if hit is None or hit[0] != key:
+            hit = (key, np.asarray(function(q), dtype=float))
+            self._cache[name] = hit
+        return hit[1]
+
     def joint_velocities(self, q: np.ndarray, twist: np.ndarray) -> np.ndarray | None:
         """Joint velocities that give ``twist`` at ``q`` (least squares), or ``None``."""
-        if self.jacobian is None:
+        jac = self.jacobian_at(q)
+        if jac is None:
             return None
-        jac = np.asarray(self.jacobian(q), dtype=float)
         return np.linalg.lstsq(jac, np.asarray(twist, dtype=float), rcond=1e-6)[0]
 
     def measured_twist(self, q: np.ndarray, twist: np.ndarray) -> np.ndarray:
@@ -113,8 +133,9 @@ class ArmModel:
             return np.zeros(3)
         q = np.asarray(q, dtype=float)
         after = np.asarray(self.forward(q + dq * period), dtype=float)[:3, 3]
-        before = np.asarray(self.forward(q), dtype=float)[:3, 3]
-        return (after - before) / period - np.asarray(twist, dtype=float)[:3]
+        before = self.forward_at(q)
+        assert before is not None
+        return (after - before[:3, 3]) / period - np.asarray(twist, dtype=float)[:3]
 
     def measured_speed_ratio(
         self, q: np.ndarray, twist: np.ndarray, max_linear: float, max_angular: float
