@@ -31,7 +31,7 @@ from wovenskin.bench.control import (
 )
 from wovenskin.cli import app
 from wovenskin.recognition import shipped
-from wovenskin.robots.base import JointLimits, Pose, Robot, RobotState
+from wovenskin.robots.base import JointLimits, Pose, Robot, RobotCapabilities, RobotState
 from wovenskin.robots.sim import tm5_900
 
 
@@ -168,6 +168,10 @@ class InstantArm(Robot):
 
     def joint_limits(self) -> JointLimits:
         return tm5_900.JOINT_LIMITS
+
+    def capabilities(self) -> RobotCapabilities:
+        # a TM5-900 as far as the safety layer's checks go; it obeys stop() at once
+        return RobotCapabilities(kinematics=tm5_900.kinematics(), stop_time_s=0.0)
 
     def send_twist(self, twist) -> None:
         self.twist = np.asarray(twist, dtype=float).copy()
