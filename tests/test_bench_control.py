@@ -201,3 +201,24 @@ def test_a_real_time_robot_is_measured_through_the_same_chain() -> None:
     assert 0 < sent.max() <= 0.25  # within the cap, shaped (a 0.1 s start is slow)
     stop = measure_stop(make, StopCase("rotate", "-x", 1.0, 0.1, "stop"), observe_s=0.1)
     assert stop.stop_s == pytest.approx(0.005)  # the arm obeys stop() at once
+
+
+def test_stop_times_through_the_fake_techman_controller() -> None:
+    """The same measurement runs on the Techman client against a fresh fake controller per
+    case (real time over loopback): the arm moved at the end and came to rest."""
+    from wovenskin.bench.control import FakeTechmanArms, StopCase, bench_stops
+
+    cases = [StopCase("translate", "+x", 0.05, 0.3, "release")]
+    with FakeTechmanArms() as arms:
+        (measured,) = bench_stops(arms, cases)
+        assert arms._fake is not None  # the last fake runs until the factory closes
+    assert arms._fake is None
+    assert measured.moving_at_end and measured.speed_at_end > 0.01
+    assert measured.stop_s is not None  # at rest within the 0.6 s watched
+
+
+def test_unknown_stop_robot_is_refused() -> None:
+    from wovenskin.bench.control import run_control_benchmark
+
+    with pytest.raises(ValueError, match="neither 'sim' nor 'techman-fake'"):
+        run_control_benchmark(loop_seconds=0, streams=0, ik_steps=2, stop_robot="ur")

@@ -1259,17 +1259,40 @@ def bench_control(
     stops: bool = typer.Option(
         True, "--stops/--no-stops", help="Measure stop times after release, STOP and watchdog."
     ),
+    stop_robot: str = typer.Option(
+        "sim",
+        help="The arm behind the stop times: 'sim' (simulated clock) or 'techman-fake' (the "
+        "Techman client against the fake Techman controller, real time, ~3 min).",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """IK step time, control-loop rate and jitter, first contact to first motion, stop
-    times (sim). ``--loop-seconds 0 --streams 0`` measures only the IK and the stops."""
+    times. ``--loop-seconds 0 --streams 0`` measures only the IK and the stops."""
 
     from wovenskin.bench.control import run_control_benchmark
 
     with err_console.status("benchmarking the control loop..."):
         result = run_control_benchmark(
-            model, loop_seconds, streams, stream_seconds, ik_steps, stops=stops
-        )
+            model, loop_seconds, streams, stream_seconds, ik_steps, stops=stops,
+            stop_robot=stop_robot,
+        )  # fmt: skip
+    _show_bench(result, json_out)
+
+
+@bench_app.command("safety")
+@user_errors
+def bench_safety(
+    episodes: int = typer.Option(40, help="Episodes of random twists (6 commands each)."),
+    seed: int = typer.Option(0, help="Seed of the random postures and twists."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """The safety layer's adversarial probe on the simulated arm: joint-margin clearance
+    at 30-148 deg/s, measured speeds over the caps, the box and the margins under random
+    twists (simulated clock: the figures do not depend on the machine's load)."""
+    from wovenskin.bench.safety import run_safety_benchmark
+
+    with err_console.status("probing the safety layer..."):
+        result = run_safety_benchmark(episodes, seed)
     _show_bench(result, json_out)
 
 

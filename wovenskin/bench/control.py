@@ -73,6 +73,7 @@ class ControlBenchResult:
     latency_within_target: float = 0.0
     latency_per_gesture_ms: dict[str, float] = field(default_factory=dict)
     stop_times: dict[str, dict[str, Any]] = field(default_factory=dict)  # per ending
+    stop_robot: str = "sim"  # the arm behind the stop times: "sim" or "techman-fake"
     model: str = ""
     notes: list[str] = field(default_factory=list)
 
@@ -123,7 +124,10 @@ class ControlBenchResult:
             for name, value in self.latency_per_gesture_ms.items():
                 table.add_row(f"  {name}", f"{value:.0f} ms")
         for ending, summary in self.stop_times.items():
-            table.add_row(*_stop_row(ending, summary))
+            label, text = _stop_row(ending, summary)
+            if self.stop_robot != "sim":
+                label += f" [{self.stop_robot}]"
+            table.add_row(label, text)
         for note in self.notes:
             table.add_row("note", note)
         return table
@@ -276,12 +280,15 @@ def run_control_benchmark(
     recognizer: Any = None,
     gestures: list[str] | None = None,
     stops: bool = True,
+    stop_robot: str = "sim",
 ) -> ControlBenchResult:
     """All four measurements; without a usable model only the IK and stop figures are
     measured (``loop_seconds=0`` and ``streams=0`` leave out the loop and the latency).
 
     ``gestures``: what the simulated streams of the latency figures hold (default: all);
-    ``stops``: measure the stop times (about 40 s on a laptop core).
+    ``stops``: measure the stop times (about 40 s on a laptop core); ``stop_robot``: on the
+    simulated arm (``sim``, simulated clock) or through the Techman client against the fake
+    Techman controller (``techman-fake``, real time over loopback TCP, about 3 minutes).
     """
     from wovenskin.gestures import GESTURE_NAMES
     from wovenskin.recognition.pipeline import load_recognizer
@@ -296,7 +303,15 @@ def run_control_benchmark(
         ik_rate_hz=rate,
     )
     if stops:
-        result.stop_times = summarise_stops(bench_stops())
+        result.stop_robot = stop_robot
+        if stop_robot == "sim":
+            result.stop_times = summarise_stops(bench_stops())
+        elif stop_robot == "techman-fake":
+            with FakeTechmanArms() as arms:
+                cases = stop_cases(durations=STOP_DURATIONS_REAL_TIME_S)
+                result.stop_times = summarise_stops(bench_stops(arms, cases))
+        else:
+            raise ValueError(f"stop robot {stop_robot!r} is neither 'sim' nor 'techman-fake'")
     if loop_seconds <= 0 and streams <= 0:
         return result
     if recognizer is None:
@@ -379,7 +394,38 @@ STOP_OBSERVE_S = 0.6  # how long after the end the arm is watched
 STOP_TICK_S = 0.005  # the control tick: the default skin's 200 Hz
 AXIS_NAMES = ("+x", "-x", "+y", "-y", "+z", "-z")
 
+STOP_DURATIONS_REAL_TIME_S = (0.1, 0.3, 1.0, 3.0)  # fewer cases where each runs in real time
+
 RobotFactory = Callable[[], Robot]
+
+
+class FakeTechmanArms:
+    """A robot factory for the stop benchmark: each call starts a fresh fake Techman
+    controller (the TM5-900 model, at its initial pose) on loopback ports and returns a
+    :class:`~wovenskin.robots.techman.TechmanRobot` client for it, so every case starts from
+    the same pose. The previous fake is stopped when the next one starts and on ``close``."""
+
+    def __init__(self) -> None:
+        self._fake: Any = None
+
+    def __call__(self) -> Robot:
+        from wovenskin.robots.registry import make_robot
+        from wovenskin.robots.techman.fake_server import FakeListenNode
+
+        self.close()
+        self._fake = FakeListenNode.tm5_900().start()
+        return make_robot(self._fake.spec)
+
+    def close(self) -> None:
+        if self._fake is not None:
+            self._fake.stop()
+            self._fake = None
+
+    def __enter__(self) -> FakeTechmanArms:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 @dataclass(frozen=True)

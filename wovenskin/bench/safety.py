@@ -1,6 +1,7 @@
 """The safety layer's adversarial probe on the simulated arm: do its margins hold as measured?
 
-``python -m wovenskin.bench.safety [--episodes N] [--seed S]`` prints
+``wovenskin bench safety [--episodes N] [--seed S] [--json]`` (or ``python -m
+wovenskin.bench.safety``) prints
 
 - how close joint 6 comes to its limit when driven toward it through
   :class:`~wovenskin.control.safety.SafetyLayer` at 30-148 deg/s (5 deg margin), and
@@ -17,9 +18,10 @@ from __future__ import annotations
 import argparse
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
+from rich.table import Table
 
 from wovenskin.control.safety import SafetyLayer, SafetyLimits
 from wovenskin.robots.sim import SimRobot, tm5_900
@@ -104,21 +106,70 @@ def probe_caps(episodes: int, seed: int) -> CapsProbe:
     return worst
 
 
+JOINT_6_SPEEDS_DEG = (30.0, 60.0, 100.0, 148.0)
+
+
+@dataclass
+class SafetyBenchResult:
+    """The probe's figures: joint 6's clearance per speed and the random-twist worst case."""
+
+    episodes: int
+    seed: int
+    joint_margin_deg: float
+    joint_6_clearance_deg: dict[str, float] = field(default_factory=dict)  # speed -> clearance
+    caps: CapsProbe = field(default_factory=CapsProbe)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def table(self) -> Table:
+        table = Table(title="wovenskin bench safety: the safety layer on the simulated arm")
+        table.add_column("figure")
+        table.add_column("value", justify="right")
+        for speed, clearance in self.joint_6_clearance_deg.items():
+            table.add_row(
+                f"joint 6 driven at {speed} deg/s toward its limit: closest approach",
+                f"{clearance:.2f} deg (margin {self.joint_margin_deg:g})",
+            )
+        what = f"random twists ({self.episodes} episodes, seed {self.seed})"
+        table.add_row(f"{what}: measured TCP speed / cap", f"{self.caps.linear:.4f}")
+        table.add_row(f"{what}: measured angular speed / cap", f"{self.caps.angular:.4f}")
+        table.add_row(
+            f"{what}: furthest outside the box (negative: inside)",
+            f"{self.caps.outside_mm:+.4f} mm",
+        )
+        table.add_row(
+            f"{what}: deepest into a joint margin (negative: clear)",
+            f"{self.caps.into_margin_deg:+.4f} deg",
+        )
+        return table
+
+
+def run_safety_benchmark(episodes: int = 40, seed: int = 0) -> SafetyBenchResult:
+    """The whole probe (module docstring), with the safety layer's stop logging muted."""
+    if episodes < 1:
+        raise ValueError(f"episodes must be at least 1, got {episodes}")
+    previous = logging.root.manager.disable
+    logging.disable(logging.WARNING)  # one line per safety stop otherwise
+    try:
+        result = SafetyBenchResult(
+            episodes, seed, math.degrees(SafetyLimits().joint_margin),
+            {f"{v:g}": joint_6_clearance(v) for v in JOINT_6_SPEEDS_DEG},
+        )  # fmt: skip
+        result.caps = probe_caps(episodes, seed)
+    finally:
+        logging.disable(previous)
+    return result
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=40)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-    logging.disable(logging.WARNING)  # one line per safety stop otherwise
-    for speed in (30.0, 60.0, 100.0, 148.0):
-        clearance = joint_6_clearance(speed)
-        print(f"joint 6 at {speed:5.0f} deg/s: {clearance:5.2f} deg from its limit (margin 5)")
-    worst = probe_caps(args.episodes, args.seed)
-    print(f"random twists, {args.episodes} episodes, seed {args.seed}:")
-    print(f"  measured TCP speed     {worst.linear:.4f} x the cap")
-    print(f"  measured angular speed {worst.angular:.4f} x the cap")
-    print(f"  furthest outside box   {worst.outside_mm:+.4f} mm (negative: inside)")
-    print(f"  deepest into a margin  {worst.into_margin_deg:+.4f} deg (negative: outside)")
+    from rich.console import Console
+
+    Console().print(run_safety_benchmark(args.episodes, args.seed).table())
 
 
 if __name__ == "__main__":
