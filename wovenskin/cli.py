@@ -991,8 +991,9 @@ def bench_model(
 # ----------------------------------------------------------------------- robot control
 
 ROBOT_HELP = (
-    "Robot: sim (the simulated TM5-900), tm:HOST[:PORT] (Techman) or "
-    "ur:HOST[?model=ur5e] (UR: ur3e, ur5e, ur10e, ur16e)."
+    "Robot: sim (the simulated TM5-900), tm:HOST[:PORT][?listen_port=N&state_port=N] "
+    "(Techman, docs/techman.md) or ur:HOST[?model=ur5e] (UR: ur3e, ur5e, ur10e, ur16e); "
+    "any kind takes ?safety=degraded to accept an arm without kinematics (docs/safety.md)."
 )
 pose_app = typer.Typer(help="Named robot poses: the task's initial pose and home.")
 app.add_typer(pose_app, name="pose")
