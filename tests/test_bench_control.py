@@ -99,7 +99,7 @@ def test_without_a_model_only_ik_is_measured(monkeypatch) -> None:
 def test_cli_prints_figures(monkeypatch) -> None:
     seen = {}
 
-    def fake(model, loop_seconds, streams, stream_seconds, ik_steps, stops=True):
+    def fake(model, loop_seconds, streams, stream_seconds, ik_steps, stops=True, stop_robot="sim"):
         seen.update(loop_seconds=loop_seconds, streams=streams, ik_steps=ik_steps, stops=stops)
         result = run_control_benchmark(
             loop_seconds=0, streams=1, stream_seconds=6.0, ik_steps=ik_steps,
