@@ -139,3 +139,22 @@ def test_eval_stream_refuses_to_score_unknown_labels(wave_hello):
 def test_scoring_refuses_labels_no_command_can_match():
     with pytest.raises(ValueError, match="cannot score events labelled 'wave_hello'"):
         score_commands([], [1.0], [2.0], ["wave_hello"], 10.0)
+
+
+def test_compare_refuses_a_directory_holding_a_comparison(tmp_path):
+    """A finished comparison (its compare.json and checkpoints) is not trained over unless
+    --resume or --overwrite; the refusal comes before any data set is opened or built."""
+    pytest.importorskip("torch")
+    out = tmp_path / "cmp"
+    (out / "grouped" / "transformer").mkdir(parents=True)
+    (out / "grouped" / "transformer" / "model.onnx").write_bytes(PRECIOUS)
+    missing = tmp_path / "no-such-dataset"
+    result = cli.invoke(app, ["compare", "--data", str(missing), "--out", str(out)])
+    text = " ".join(result.output.split())
+    assert result.exit_code == 2, result.output
+    assert f"{out} already holds a comparison" in text and "--overwrite" in text, text
+    assert (out / "grouped" / "transformer" / "model.onnx").read_bytes() == PRECIOUS
+    # with --overwrite the check passes and the command goes on to the (missing) data set
+    result = cli.invoke(app, ["compare", "--data", str(missing), "--out", str(out), "--overwrite"])
+    assert "already holds a comparison" not in result.output
+    assert result.exit_code != 0

@@ -657,6 +657,23 @@ def train(
 CHECKPOINT_FILES = ("model.pt", "model.onnx", "meta.json", "training_state.pt")
 
 
+def _check_comparison_dir(out: Path, overwrite: bool, resume: bool) -> None:
+    """Refuse to compare into ``out`` when it holds a comparison or a trained model (in
+    ``out/<split>/<model>/``) unless resuming it or ``overwrite``."""
+    from wovenskin.outputs import OutputExistsError
+    from wovenskin.recognition.compare import COMPARE_FILE
+
+    if resume or overwrite or not out.is_dir():
+        return
+    found = (out / COMPARE_FILE).exists() or any(
+        (checkpoint / name).exists()
+        for checkpoint in out.glob("*/*")
+        for name in CHECKPOINT_FILES
+    )
+    if found:
+        raise OutputExistsError(out, "a comparison (--resume continues it)")
+
+
 def _check_checkpoint_dir(out: Path, overwrite: bool, resume: bool) -> None:
     """Refuse to train over a model already in ``out`` unless resuming it or ``overwrite``."""
     from wovenskin.outputs import OutputExistsError
@@ -851,6 +868,7 @@ def compare(
         "", help='Hyperparameters per model, JSON: \'{"bilstm": {"hidden": 64}}\'.'
     ),
     resume: bool = typer.Option(False, help="Continue interrupted runs in --out."),
+    overwrite: bool = typer.Option(False, help="Replace a comparison already in --out."),
     time_budget: float = typer.Option(None, help="Minutes per model and split."),
     threads: int = typer.Option(
         1, help="Torch threads for training (one is fastest on a busy 2-core machine)."
@@ -876,6 +894,9 @@ def compare(
     if any(not isinstance(v, dict) for v in parameters.values()):
         raise ValueError("--hparams must map model names to JSON objects")
     ui = err_console if json_out else console
+    targets = [out] if len(data or [None]) == 1 else [out / Path(str(d)).name for d in data]
+    for target in targets:  # refused before any data set is built or model trained
+        _check_comparison_dir(target, overwrite, resume)
     datasets = [_open_or_build_dataset(d, ui) for d in (data or [None])]
     options = TrainOptions(
         epochs=epochs, batch_size=batch_size, lr=lr, seed=seed, patience=patience,
