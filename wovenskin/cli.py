@@ -140,7 +140,7 @@ def _config_for(smoothing_ms: float):
 @app.command()
 @user_errors
 def simulate(
-    out: Path = typer.Option(..., help="Labelled-stream .npz to write (FORMATS.md)."),
+    out: Path = typer.Option(..., help="Labelled-stream .npz to write (docs/formats.md)."),
     seconds: float = typer.Option(60.0, help="Length of the stream."),
     seed: int = typer.Option(1, help="Random seed: the same seed gives the same file."),
     rows: int = typer.Option(10, help="Skin rows."),

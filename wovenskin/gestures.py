@@ -35,7 +35,7 @@ GESTURES: tuple[GestureSpec, ...] = (
 )
 
 GESTURE_NAMES: tuple[str, ...] = tuple(g.name for g in GESTURES)
-"""The 14 valid gestures, in the order of GESTURES.md."""
+"""The 14 valid gestures, in the order of docs/gestures.md."""
 
 CLASS_NAMES: tuple[str, ...] = (*GESTURE_NAMES, INVALID)
 """All 15 classes: the 14 gestures and ``invalid`` last."""

@@ -1,6 +1,6 @@
 """The action mapping: which gesture drives which twist or named pose, and how fast.
 
-A TOML file (the packaged ``default_mapping.toml`` is GESTURES.md's table) holds a
+A TOML file (the packaged ``default_mapping.toml`` is docs/gestures.md's table) holds a
 ``[motion]`` table (frame, speeds, acceleration and jerk limits; angles in degrees), a
 ``[poses]`` table (``hold_to_run``) and a ``[gestures]`` table mapping each gesture name to
 ``"translate <axis>"``, ``"rotate <axis>"``, ``"pose initial|home"`` or ``"none"``.

@@ -1,4 +1,4 @@
-"""The execution rules of GESTURES.md: from per-window class probabilities to commands.
+"""The execution rules of docs/gestures.md: from per-window class probabilities to commands.
 
 Owns :class:`Arbiter` (which gesture is the active command, frame by frame) and
 :class:`PerformingDetector` (whether the fingers on the skin are *being performed* --
@@ -9,7 +9,7 @@ Inputs, one value per conditioned frame: its time ``t`` (s), the conditioner's d
 frames where the streaming recogniser ran the model, the class probabilities of the
 window ending there (:mod:`~wovenskin.recognition.streaming`).
 
-Rules (GESTURES.md, "Execution rules" and the resting paragraph before them):
+Rules (docs/gestures.md, "Execution rules" and the resting paragraph before them):
 
 - A prediction *recognises* class ``g`` when ``g`` is its most probable class, ``g`` is
   not ``invalid`` and its probability reaches ``min_probability``; otherwise it

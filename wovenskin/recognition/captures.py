@@ -1,6 +1,6 @@
 """Gesture recognition on labelled captures (e.g. HAART): training, per-capture scoring, LOPO.
 
-A labelled-captures file (``FORMATS.md``) holds separate recordings of raw sensor values,
+A labelled-captures file (``docs/formats.md``) holds separate recordings of raw sensor values,
 one label each, typically several seconds of one gesture repeated (HAART: 10 s captures at
 54 Hz, 10-15 repetitions of one social touch).  This module owns how such files are
 turned into models and how those models are scored, one label per capture.

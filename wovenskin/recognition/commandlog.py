@@ -1,4 +1,4 @@
-"""The command log of FORMATS.md: JSON lines ``{"t": s, "gesture": name | null}``.
+"""The command log of docs/formats.md: JSON lines ``{"t": s, "gesture": name | null}``.
 
 Each line means: from time ``t`` (seconds on the stream's own clock) the active command is
 ``gesture`` (``null``: none).  A line is written only when the active command changes.
@@ -10,7 +10,7 @@ Each line means: from time ``t`` (seconds on the stream's own clock) the active 
   non-finite or decreasing time, or a gesture that is not a string or None, with a
   one-line ``ValueError``.
 - Readers (:func:`parse_command_log`, :func:`read_command_log`) ignore every line that is
-  not a JSON object with both keys, as FORMATS.md requires, and also those whose ``t`` is
+  not a JSON object with both keys, as docs/formats.md requires, and also those whose ``t`` is
   not a finite number or whose ``gesture`` is neither a string nor null (they cannot mean
   a command).  They return the lines as written, repeats included.
 """

@@ -25,7 +25,7 @@ sensitivity, pressure, finger size) while its shape and motion carry the class, 
 network sees the shape at a fixed scale. With ``level_input`` the log of the peak, the
 window's *level*, is also given to the network as one number; it is off by default:
 given the level, a network trained on a few skins learns strength as a cue (a stronger
-skin's one-finger swipe reads as two fingers), which GESTURES.md rules out. Without it
+skin's one-finger swipe reads as two fingers), which docs/gestures.md rules out. Without it
 a model's output is the same for a window and that window times any gain that keeps its
 peak above the floor (a property the tests check).
 

@@ -19,7 +19,7 @@ Definitions (``W`` window, ``m`` = ``min_segment_frames`` (10), ``p`` =
 - Its *informative span* is ``[start, informative_stop)``: for a gesture whose motion end
   is known (simulated streams carry it), up to ``rest_context_frames`` (20, the 0.1 s
   moving average of the conditioning) after the motion ends, else the whole event.  A
-  finger resting after a swipe belongs to the swipe (GESTURES.md), so windows that *end*
+  finger resting after a swipe belongs to the swipe (docs/gestures.md), so windows that *end*
   in the resting phase keep the gesture's label; but a window that shows nothing except a
   still finger is the same for every gesture (and for a push's hold), so windows must
   overlap the informative span by at least ``m`` frames.  Keeping the command through the

@@ -33,7 +33,7 @@ from wovenskin.recording.native import Recording, read_recording
 
 FileKind = Literal["recording", "stream", "captures"]
 CAPTURES_ONLY_KEYS = ("lengths", "labels", "class_names", "groups")
-"""Members only a labelled-captures ``.npz`` has (FORMATS.md)."""
+"""Members only a labelled-captures ``.npz`` has (docs/formats.md)."""
 
 
 def file_kind(path: str | os.PathLike) -> FileKind:

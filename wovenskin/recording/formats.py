@@ -1,4 +1,4 @@
-"""Interchange formats of ``../shared/FORMATS.md``: labelled streams and labelled captures.
+"""Interchange formats of ``docs/formats.md``: labelled streams and labelled captures.
 
 Readers validate keys, dtypes and shapes and raise :class:`FormatError` with a one-line
 message naming the file and the problem; they never fail with a bare traceback and never
@@ -9,7 +9,7 @@ one message (:data:`NOT_OURS`) for every reader.  Writers run the same checks be
 writing, so they cannot produce a file the readers would reject; they refuse an existing
 target unless ``overwrite`` (:mod:`wovenskin.outputs`) and replace it atomically.
 
-Conventions beyond FORMATS.md (documented in ``docs/recording-format.md``):
+Conventions beyond docs/formats.md (documented in ``docs/recording-format.md``):
 
 - floating-point frames are returned as float32; integer frames are kept exactly as read
   (signal conditioning converts them to float);
@@ -40,7 +40,7 @@ class FormatError(ValueError):
 
 @dataclass
 class LabelledStream:
-    """A continuous recording from one skin (FORMATS.md "Labelled stream")."""
+    """A continuous recording from one skin (docs/formats.md "Labelled stream")."""
 
     frames: np.ndarray  # (T, R, C) raw values, float32 or integer
     t: np.ndarray  # (T,) float64 seconds, increasing
@@ -53,7 +53,7 @@ class LabelledStream:
 
 @dataclass
 class LabelledCaptures:
-    """Separate captures with one label each (FORMATS.md "Labelled captures")."""
+    """Separate captures with one label each (docs/formats.md "Labelled captures")."""
 
     frames: np.ndarray  # (N, T, R, C)
     lengths: np.ndarray  # (N,) int64

@@ -1,7 +1,7 @@
 """``wovenskin info`` and ``wovenskin convert``: describe and convert data files.
 
 Knows the three kinds of file wovenskin reads: labelled streams and labelled captures
-(``.npz``, FORMATS.md) and native recordings (``.wsrec``).  The kind is decided by
+(``.npz``, docs/formats.md) and native recordings (``.wsrec``).  The kind is decided by
 :func:`wovenskin.recording.files.file_kind`, by content, so a mis-named file is still
 described correctly and a bad one gets the same message as from every other command.
 """

@@ -106,7 +106,7 @@ class ChannelOrder:
     ``major="row"``: channel ``k`` is device row ``k // cols``, column ``k % cols``;
     ``major="col"``: channel ``k`` is device column ``k // rows``, row ``k % rows``.
     ``flip_rows``/``flip_cols`` mirror the device's rows/columns to reach the
-    user-facing orientation of GESTURES.md (for example when the electrodes are
+    user-facing orientation of docs/gestures.md (for example when the electrodes are
     numbered from the bottom edge).
     """
 

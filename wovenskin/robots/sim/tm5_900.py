@@ -76,7 +76,7 @@ def jacobian(q: np.ndarray) -> np.ndarray:
 
 
 # Where the skin sits on the end link (the MJCF's "skin_patch" site), in that site's frame:
-# the skin's "up" (toward row 0, GESTURES.md) and "right" (toward higher columns) axes.
+# the skin's "up" (toward row 0, docs/gestures.md) and "right" (toward higher columns) axes.
 # The site is 140 mm along its x (the skin's 10 rows x 14 mm) and 100 mm along its z, the
 # tool axis (10 columns x 10 mm); its y axis is the outward normal.
 SKIN_SITE = "skin_patch"
