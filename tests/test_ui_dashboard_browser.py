@@ -251,8 +251,8 @@ def test_a_perform_button_makes_the_simulated_person_act(page) -> None:
     # travels about 0.5 mm (measured), so the test asks for 0.2 mm, not a speed.
     x, y, z = start
     moved = (
-        "(p => Math.hypot(p[0] - %r, p[1] - %r, p[2] - %r))"
-        "(window.wovenskin.state.robot.tcp.pos) > 0.0002" % (x, y, z)
+        f"(p => Math.hypot(p[0] - {x!r}, p[1] - {y!r}, p[2] - {z!r}))"
+        "(window.wovenskin.state.robot.tcp.pos) > 0.0002"
     )
     assert _wait_for(page, moved, 5.0), f"TCP still at {_state(page)['robot']['tcp']}"
     page.click("#record")
