@@ -317,6 +317,82 @@ def test_sparse_samples_are_reconstructed_as_a_path_not_jumps():
     assert 50 <= moving <= 110  # ~0.4 s of sliding at 200 frames/s: the drawn speed
 
 
+def test_sparse_samples_on_a_circle_follow_the_circle_not_its_chords():
+    """A busy page sends a circle as a few samples 60 degrees apart: between them the
+    fingertip must follow the curve through the last three samples (the chords of a
+    hexagon cut 2.7 mm inside a 20 mm circle and read as two-finger swipes)."""
+    from wovenskin.sim.live import Fingertip
+
+    source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
+    rendered: list[np.ndarray] = []
+    render = source._model.render
+
+    def spy(contacts=(), n_frames=None, bursts=(), offset=0):
+        for track in contacts:
+            rendered.append(np.stack([track.x_mm, track.y_mm, track.force_n], axis=1))
+        return render(contacts, n_frames, bursts, offset)
+
+    source._model.render = spy
+    source.start()
+    try:
+        _frames_for(source, 0.2)
+        for k in range(9):  # 480 degrees of a 20 mm circle in 9 samples, 80 ms apart, live
+            angle = np.radians(60.0 * k)
+            tip = Fingertip(50.0 + 20.0 * np.cos(angle), 70.0 + 20.0 * np.sin(angle), 1.5)
+            source.set_touches({1: tip}, time.monotonic())
+            _frames_for(source, 0.08)
+        _frames_for(source, 0.3)
+        source.set_touches({}, time.monotonic())
+        _frames_for(source, 0.3)
+    finally:
+        source.close()
+    path = np.concatenate(rendered)
+    path = path[path[:, 2] > 0.5]  # frames in firm contact
+    dx, dy = path[:, 0] - 50.0, path[:, 1] - 70.0
+    turned = np.degrees(np.unwrap(np.arctan2(dy, dx)))
+    assert turned[-1] == pytest.approx(480.0, abs=1.0)
+    radius = np.hypot(dx, dy)[turned > 121.0]  # from the third sample on
+    assert len(radius) >= 40
+    assert radius.min() > 19.0, f"cut {20.0 - radius.min():.1f} mm inside the circle"
+    assert radius.max() < 20.5
+    steps = np.hypot(np.diff(path[:, 0]), np.diff(path[:, 1]))
+    assert steps.max() < 3.0  # still frame by frame, no jumps
+
+
+def test_sparse_samples_on_a_line_stay_on_the_line():
+    """Three or more collinear sparse samples give a straight stroke, not a curve."""
+    from wovenskin.sim.live import Fingertip
+
+    source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
+    rendered: list[np.ndarray] = []
+    render = source._model.render
+
+    def spy(contacts=(), n_frames=None, bursts=(), offset=0):
+        for track in contacts:
+            rendered.append(np.stack([track.x_mm, track.y_mm, track.force_n], axis=1))
+        return render(contacts, n_frames, bursts, offset)
+
+    source._model.render = spy
+    source.start()
+    try:
+        _frames_for(source, 0.2)
+        for d in (0.0, 5.0, 20.0, 30.0, 55.0, 60.0):  # uneven steps along one line
+            source.set_touches({1: Fingertip(20.0 + 0.6 * d, 30.0 + 0.8 * d, 1.5)},
+                               time.monotonic())  # fmt: skip
+            _frames_for(source, 0.08)
+        source.set_touches({}, time.monotonic())
+        _frames_for(source, 0.3)
+    finally:
+        source.close()
+    path = np.concatenate(rendered)
+    path = path[path[:, 2] > 0.5]
+    off_line = np.abs(0.8 * (path[:, 0] - 20.0) - 0.6 * (path[:, 1] - 30.0))
+    assert off_line.max() < 1e-6
+    along = 0.6 * (path[:, 0] - 20.0) + 0.8 * (path[:, 1] - 30.0)
+    assert np.all(np.diff(along) >= -1e-9)  # onward only, no overshoot and back
+    assert along[-1] == pytest.approx(60.0)
+
+
 def test_performances_are_rendered_in_short_pieces():
     """A whole performance rendered at once took up to 130 ms (longer under load), more
     than the dashboard's 30 ms lookahead plus the 100 ms skin watchdog: the reader starved

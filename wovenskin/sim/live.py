@@ -70,6 +70,7 @@ MAX_TOUCH_SEGMENT_S = 0.25  # a fingertip slides between sparse samples over at 
 _TOUCH_MOVED_MM = 0.2  # a sample this far from where a fingertip waits moves it
 _TOUCH_PRESSED_N = 0.02  # ... or one this much harder or lighter presses it
 _RESUME_SEGMENT_S = 0.05  # after a rest, a sparse sample's slide lasts at most this long
+_TOUCH_CURVE_STEP_S = 0.01  # a long segment is filled with a point on the curve this often
 _VIRTUAL_PAD = Pad(width_mm=9.0, growth_mm=3.0, aspect=1.15)
 
 
@@ -219,6 +220,7 @@ class SimulatedSkinSource:
         self._touch_offset: float | None = None  # stream time = client time + offset
         self._touch_client_t: float | None = None  # sender's time of the newest sample
         self._touch_still = False  # the newest sample repeated the one before (a rest)
+        self._touch_trail: dict[int, list[tuple[float, float]]] = {}  # last 2 positions each
         self._performing: _Performing | None = None  # a performance still being rendered
 
     # -- construction from a spec -------------------------------------------------------------
@@ -386,9 +388,16 @@ class SimulatedSkinSource:
         two frames looked like two fingers to the recogniser).  A pressing fingertip's
         force changes the same way, in a straight line from sample to sample (a busy page
         sent a mouse's rising press as steps 100 ms apart, and `push` was not recognised).
-        Positions may lie off the sensing area (nothing is sensed there); forces are capped
-        at :data:`MAX_TOUCH_FORCE_N`.  Raises ``ValueError`` for more than :data:`MAX_TOUCHES`
-        fingertips, values that are not fingertips or a non-finite ``client_t``."""
+        A segment longer than 2 x :data:`_TOUCH_CURVE_STEP_S` of stream time (never between
+        dense samples) follows the curve the samples lie on, not the chord: when the two
+        samples before it placed the same pressing fingertips, moving, points every
+        :data:`_TOUCH_CURVE_STEP_S` are added on the quadratic through the last three
+        positions (parametrised by chord length, so three collinear points give the straight
+        line at an even speed), with the segment's timing unchanged (sparse circles drawn as
+        polygons read as two-finger swipes).  Positions may lie off the sensing area
+        (nothing is sensed there); forces are capped at :data:`MAX_TOUCH_FORCE_N`.  Raises
+        ``ValueError`` for more than :data:`MAX_TOUCHES` fingertips, values that are not
+        fingertips or a non-finite ``client_t``."""
         if len(touches) > MAX_TOUCHES:
             raise ValueError(f"at most {MAX_TOUCHES} fingertips, got {len(touches)}")
         for key, tip in touches.items():
@@ -423,6 +432,13 @@ class SimulatedSkinSource:
                 if previous is None:
                     previous = {key: finger.target for key, finger in self._fingers.items()}
                 self._touch_still = not _changes(previous, capped)
+                if idle:
+                    self._touch_trail.clear()
+                start = self._touch_timeline[-1].t if self._touch_timeline else max(
+                    (finger.anchor_t for finger in self._fingers.values()), default=head
+                )  # fmt: skip
+                self._touch_timeline.extend(self._curve(previous, capped, max(start, head), t))
+            self._follow_trail(capped)
             self._touch_timeline.append(_TouchSample(t, capped))
             self._cond.notify_all()
 
@@ -450,6 +466,66 @@ class SimulatedSkinSource:
         assert self._touch_offset is not None
         self._touch_offset += head + spacing - t
         return head + spacing
+
+    def _curve(
+        self, before: dict[int, Fingertip], touches: dict[int, Fingertip], start: float, end: float
+    ) -> list[_TouchSample]:
+        """Samples between ``start`` and ``end`` (stream times of ``before`` and ``touches``)
+        on the curve through each fingertip's last three positions (see :meth:`set_touches`);
+        none unless the same fingertips press throughout and one of them curves.  The caller
+        holds the lock."""
+        n = int((end - start) / _TOUCH_CURVE_STEP_S + 1e-9)
+        if n < 2 or set(before) != set(touches):
+            return []
+        u = np.arange(1, n) / n  # the fraction of the segment, evenly in time
+        paths: dict[int, np.ndarray] = {}
+        curved = False
+        for key, tip in touches.items():
+            old = before[key]
+            if old.force_n <= 0.0 or tip.force_n <= 0.0:
+                return []
+            p1, p2 = np.array([old.x_mm, old.y_mm]), np.array([tip.x_mm, tip.y_mm])
+            paths[key] = p1 + np.outer(u, p2 - p1)  # the chord, unless the trail says more
+            trail = self._touch_trail.get(key, [])
+            if len(trail) < 2 or trail[-1] != (old.x_mm, old.y_mm):
+                continue
+            p0 = np.array(trail[0])
+            d1, d2 = float(np.linalg.norm(p1 - p0)), float(np.linalg.norm(p2 - p1))
+            if d1 < _TOUCH_MOVED_MM or d2 < _TOUCH_MOVED_MM:
+                continue
+            s = d1 + u * d2  # chord-length knots 0, d1, d1 + d2: Lagrange weights
+            w0 = (s - d1) * (s - d1 - d2) / (d1 * (d1 + d2))
+            w1 = -s * (s - d1 - d2) / (d1 * d2)
+            w2 = s * (s - d1) / ((d1 + d2) * d2)
+            paths[key] = np.outer(w0, p0) + np.outer(w1, p1) + np.outer(w2, p2)
+            curved = True
+        if not curved:
+            return []
+        samples = []
+        for i, f in enumerate(u):
+            tips = {
+                key: Fingertip(
+                    float(paths[key][i, 0]),
+                    float(paths[key][i, 1]),
+                    before[key].force_n + (tip.force_n - before[key].force_n) * float(f),
+                )
+                for key, tip in touches.items()
+            }
+            samples.append(_TouchSample(start + (end - start) * float(f), tips))
+        return samples
+
+    def _follow_trail(self, touches: dict[int, Fingertip]) -> None:
+        """Remember each fingertip's last two positions for :meth:`_curve`; one that stays
+        put (a rest) starts its trail again.  The caller holds the lock."""
+        trail = {}
+        for key, tip in touches.items():
+            point = (tip.x_mm, tip.y_mm)
+            old = self._touch_trail.get(key, [])
+            if old and np.hypot(point[0] - old[-1][0], point[1] - old[-1][1]) < _TOUCH_MOVED_MM:
+                trail[key] = [point]
+            else:
+                trail[key] = [*old[-1:], point]
+        self._touch_trail = trail
 
     @property
     def touching(self) -> bool:
