@@ -3,9 +3,10 @@
 The checkpoint directory ``wovenskin/models/default/`` holds ``meta.json`` and
 ``model.onnx`` (all that inference needs, with ONNX Runtime) and ``MODEL_CARD.md`` (its
 data, the command that reproduces it, and its measured figures).
-``wovenskin/models/stream/`` holds the stream-recipe model beside it, with its torch
-weights (``model.pt``, to fine-tune), ``history.json`` and ``learning_curve.png``; its card
-says why it is not the default yet.
+The default is the stream-recipe transformer, shipped with its torch weights
+(``model.pt``, to fine-tune), ``history.json`` and ``learning_curve.png``.
+``wovenskin/models/overlay/`` keeps the previous default (the paper's overlay recipe) for
+comparison.
 """
 
 from __future__ import annotations
