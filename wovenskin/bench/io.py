@@ -18,16 +18,15 @@ beside it.  The process is pinned to one CPU while it runs.
 
 from __future__ import annotations
 
-import os
 import platform
 import time
-from contextlib import contextmanager, suppress
 from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 
 import numpy as np
 from rich.table import Table
 
+from wovenskin.recognition.timing import one_core
 from wovenskin.signal.calibration import calibrate
 from wovenskin.signal.conditioner import Conditioner
 from wovenskin.signal.config import ConditioningConfig
@@ -83,22 +82,6 @@ class IoBenchResult:
             f"frame by frame {self.ratio_realtime_frame_by_frame:.0f}x)"
         )
         return table
-
-
-@contextmanager
-def one_core():
-    """Pin this process to one CPU for the duration (where the OS allows it)."""
-    if not hasattr(os, "sched_getaffinity"):
-        yield
-        return
-    before = os.sched_getaffinity(0)
-    with suppress(OSError):
-        os.sched_setaffinity(0, {min(before)})
-    try:
-        yield
-    finally:
-        with suppress(OSError):
-            os.sched_setaffinity(0, before)
 
 
 def bench_frames(n_frames: int, layout: SkinLayout, seed: int = 0) -> tuple[np.ndarray, float]:

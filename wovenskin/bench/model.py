@@ -35,44 +35,17 @@ from typing import Any
 import numpy as np
 from rich.table import Table
 
-from wovenskin.bench.io import one_core
+from wovenskin.recognition.timing import WARMUP_CALLS as WARMUP_CALLS  # re-exported
+from wovenskin.recognition.timing import measure_latency, one_core
 
 PAPER_MS = {"transformer": 15.0, "bilstm": 12.0}
 """The paper's per-window latencies (its hardware) for the transformer and the BiLSTM."""
 BATCH = 256
-WARMUP_CALLS = 20
 THROUGHPUT_SECONDS = 1.0
 INPUT_POOL = 32
 """Distinct random windows cycled through the timed calls."""
 ROWS, COLS, WINDOW = 10, 10, 30
 FRESH_SOURCE = "default hparams, fresh weights"
-
-
-def measure_latency(
-    calls: Mapping[str, Callable[[np.ndarray], object]],
-    inputs: np.ndarray,
-    repeats: int,
-    warmup: int = WARMUP_CALLS,
-) -> dict[str, np.ndarray]:
-    """Seconds per call of every callable over ``repeats`` interleaved rounds.
-
-    ``inputs`` is a pool of ready-made arguments (e.g. ``(P, 1, W, R, C)`` single-window
-    batches) cycled through; each callable is warmed up ``warmup`` times first.
-    """
-    if repeats < 1:
-        raise ValueError(f"repeats must be at least 1, got {repeats}")
-    for call in calls.values():
-        for i in range(warmup):
-            call(inputs[i % len(inputs)])
-    times = {name: np.empty(repeats) for name in calls}
-    clock = time.perf_counter
-    for r in range(repeats):
-        x = inputs[r % len(inputs)]
-        for name, call in calls.items():
-            t0 = clock()
-            call(x)
-            times[name][r] = clock() - t0
-    return times
 
 
 def measure_throughput(

@@ -14,7 +14,7 @@ This module is the layer between the ``wovenskin train`` / ``compare`` commands 
 - :func:`compare_models` trains every requested model on the same data set and the same
   split(s) in one run, scores each checkpoint with ONNX Runtime on the validation windows
   (writing its evaluation report into ``<checkpoint>/eval-<split>/``), times them at batch
-  1 on one thread in interleaved rounds (:func:`~wovenskin.bench.model.measure_latency`),
+  1 on one thread in interleaved rounds (:func:`~.timing.measure_latency`),
   and returns a :class:`Comparison`: the paper's side-by-side table, plus macro-F1 and
   parameter counts, written as ``compare.json``.
 - :class:`TrainProgressDisplay` shows training in the terminal (Rich): a bar per epoch with
@@ -337,11 +337,10 @@ def compare_models(
     also runs the whole live pipeline on them (:func:`score_on_streams`): event F1, false
     activations per minute and latency, the figures that matter to a user.
     """
-    from wovenskin.bench.io import one_core
-    from wovenskin.bench.model import measure_latency
     from wovenskin.recognition.checkpoint import load_checkpoint
     from wovenskin.recognition.models import MODEL_REGISTRY, count_parameters
     from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+    from wovenskin.recognition.timing import measure_latency, one_core
 
     models = list(models or MODEL_REGISTRY)
     unknown = [m for m in models if m not in MODEL_REGISTRY]

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from wovenskin.recognition.checkpoint import (
+from wovenskin.recognition.checkpoint_meta import (
     ONNX_FILE,
     CheckpointError,
     CheckpointMeta,

@@ -43,9 +43,9 @@ from wovenskin.sim.motion import (
     with_phases_from_contacts,
     zero_force_off_skin,
 )
-from wovenskin.sim.performances import perform_valid
 from wovenskin.sim.person import Person, Trial
 from wovenskin.sim.physics import ContactTrack, NoiseBurst
+from wovenskin.sim.valid import perform_valid
 from wovenskin.skin.layout import SkinLayout
 
 INVALID_KINDS = (

@@ -1,9 +1,9 @@
 """The quantitative ranges of ``docs/gestures.md`` as named constants.
 
-Every performer in :mod:`wovenskin.sim.performances` draws its trial parameters inside
-these ranges, and the simulator's tests check the rendered tracks against the same
-constants, so the contract lives in exactly one place in code.  Ranges are ``(low,
-high)`` tuples, lengths in millimetres, times in seconds, forces in newtons.
+Every performer in :mod:`wovenskin.sim.valid` and :mod:`wovenskin.sim.invalid` draws its
+trial parameters inside these ranges, and the simulator's tests check the rendered tracks
+against the same constants, so the contract lives in exactly one place in code.  Ranges
+are ``(low, high)`` tuples, lengths in millimetres, times in seconds, forces in newtons.
 """
 
 from __future__ import annotations

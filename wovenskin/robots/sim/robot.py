@@ -17,7 +17,6 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
-from importlib import resources
 
 import mink
 import mujoco
@@ -35,6 +34,8 @@ from wovenskin.robots.base import (
 )
 from wovenskin.robots.sim import tm5_900
 from wovenskin.robots.sim.ik import DifferentialIK, IKInfo
+from wovenskin.robots.sim.tm5_900 import MODEL_FILE as MODEL_FILE  # re-exported
+from wovenskin.robots.sim.tm5_900 import load_model
 
 log = logging.getLogger(__name__)
 
@@ -45,15 +46,7 @@ STOP_TIME_S = 0.08
 MAX_STEP_S = 1.0  # longest simulated time one step() advances (longer steps are cut)
 MOVING_SPEED = 1e-6  # rad/s; joint speeds below this count as standing still
 TRACKING_ERROR = 0.01  # reported TCP speeds vs the commanded ones, beyond the IK step's
-MODEL_FILE = "tm5_900.xml"
 PLAN_SAMPLES = 41
-
-
-def load_model() -> mujoco.MjModel:
-    """The packaged MuJoCo model of the TM5-900."""
-    path = resources.files("wovenskin.robots.sim").joinpath(MODEL_FILE)
-    with resources.as_file(path) as file:
-        return mujoco.MjModel.from_xml_path(str(file))
 
 
 @dataclass

@@ -8,6 +8,9 @@ base frame sits at the bottom of the base, z up; the tool centre point (TCP) lie
 
 from __future__ import annotations
 
+from importlib import resources
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from wovenskin.robots.base import N_JOINTS, JointLimits, Kinematics, SceneModel
@@ -17,6 +20,9 @@ from wovenskin.robots.dh import (  # noqa: F401 (DHLink, dh_transform: re-export
     chain_jacobian,
     dh_transform,
 )
+
+if TYPE_CHECKING:
+    import mujoco
 
 DH: tuple[DHLink, ...] = (
     DHLink(d=0.1452, a=0.0, alpha=-np.pi / 2, theta_offset=0.0),
@@ -91,10 +97,17 @@ def kinematics() -> Kinematics:
 
 def scene() -> SceneModel:
     """The arm's MuJoCo model (``tm5_900.xml``) and its skin patch, for the 3D view."""
+    return SceneModel(load_model, SKIN_SITE, SKIN_UP_AXIS, SKIN_RIGHT_AXIS)
 
-    def load() -> object:
-        from wovenskin.robots.sim.robot import load_model
 
-        return load_model()
+MODEL_FILE = "tm5_900.xml"
+"""The packaged MuJoCo model of the arm, in ``wovenskin.robots.sim``."""
 
-    return SceneModel(load, SKIN_SITE, SKIN_UP_AXIS, SKIN_RIGHT_AXIS)
+
+def load_model() -> mujoco.MjModel:
+    """The packaged MuJoCo model of the TM5-900."""
+    import mujoco
+
+    path = resources.files("wovenskin.robots.sim").joinpath(MODEL_FILE)
+    with resources.as_file(path) as file:
+        return mujoco.MjModel.from_xml_path(str(file))
