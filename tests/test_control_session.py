@@ -506,7 +506,13 @@ def test_recording_can_start_and_stop_while_running(tmp_path) -> None:
     # What was read between start and stop, frame by frame: an unpaced source hands over
     # its frames in blocks whose size depends on the machine's load, so the count is
     # bounded by the session clock, not by a fixed number of frames.
-    assert len(recording.t) >= 150 and recording.annotations_of("robot")
-    assert np.allclose(np.diff(recording.t), 0.005)
-    assert recording.t[-1] <= stopped_at + 1e-9
-    assert recording.t[0] >= started_at - 1.0 - 1e-9  # at most the source's 1 s buffer before
+    # (A starved source lets the wall clock advance the session clock, so 1 s of session
+    # time may hold fewer frames under load: the count only has to show frames were kept.)
+    where = (
+        f"{len(recording.t)} frames {recording.t[:1]}..{recording.t[-1:]}, "
+        f"session {started_at:.3f}..{stopped_at:.3f} s"
+    )
+    assert len(recording.t) >= 20 and recording.annotations_of("robot"), where
+    assert np.allclose(np.diff(recording.t), 0.005), where
+    assert recording.t[-1] <= stopped_at + 1e-9, where
+    assert recording.t[0] >= started_at - 1.0 - 1e-9, where  # the source's 1 s buffer at most
