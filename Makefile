@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 PIP := $(PY) -m pip
 
-.PHONY: run test lint bench clean chromium
+.PHONY: run test test-fast lint bench clean chromium
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,12 @@ test: $(VENV)/.installed-dev
 	@command -v chromium >/dev/null 2>&1 || $(MAKE) --no-print-directory chromium
 	$(VENV)/bin/ruff check wovenskin tests
 	$(PY) -m pytest
+
+# The fast tier: the suite without the tests marked slow (training, LOPO, data set builds,
+# the longest benchmark runs) and browser; under 2 minutes. `make test` stays the full suite.
+test-fast: $(VENV)/.installed-dev
+	$(VENV)/bin/ruff check wovenskin tests
+	$(PY) -m pytest -m "not slow and not browser"
 
 # Debian's chromium for the dashboard's browser tests (Playwright drives it; no tool ever
 # downloads a browser of its own). Without it the browser tests skip, except in CI.

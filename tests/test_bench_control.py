@@ -41,6 +41,7 @@ def test_ik_steps_are_timed() -> None:
     assert np.all(times > 0) and np.median(times) < 0.05
 
 
+@pytest.mark.slow
 def test_all_figures_with_a_stand_in_recogniser() -> None:
     result = run_control_benchmark(
         loop_seconds=1.0, streams=1, stream_seconds=10.0, ik_steps=50,
@@ -96,6 +97,7 @@ def test_without_a_model_only_ik_is_measured(monkeypatch) -> None:
     assert "not measured: the shipped default model is missing" in result.notes[0]
 
 
+@pytest.mark.slow
 def test_cli_prints_figures(monkeypatch) -> None:
     seen = {}
 
@@ -128,6 +130,7 @@ def test_cli_prints_figures(monkeypatch) -> None:
 # -- stop times
 
 
+@pytest.mark.slow
 def test_stop_times_on_the_simulated_arm_meet_the_targets() -> None:
     """The issue's targets, on a subset of the benchmark's commands (every direction, speeds
     up to the caps, three endings). A release used to take 0.37 s after a 0.2 s command and

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from typer.testing import CliRunner
 
 from wovenskin.bench.dashboard import run_dashboard_benchmark
 from wovenskin.cli import app
 
 
+@pytest.mark.slow
 def test_the_benchmark_measures_the_page_rate_and_the_swipes() -> None:
     result = run_dashboard_benchmark(idle_seconds=1.0, swipes=2)
     assert result.states_per_s > 0 and result.state_bytes > 1000
@@ -21,6 +23,7 @@ def test_the_benchmark_measures_the_page_rate_and_the_swipes() -> None:
     json.dumps(result.to_dict())
 
 
+@pytest.mark.slow
 def test_gestures_drawn_as_on_a_touch_screen_are_scored_by_their_first_command() -> None:
     result = run_dashboard_benchmark(
         idle_seconds=0.5, swipes=1, gesture_rounds=1, gestures=("pinch_out_5f", "push")
@@ -38,6 +41,7 @@ def test_the_command_refuses_bad_options() -> None:
     assert outcome.exit_code == 2 and "--swipes must be" in outcome.stderr
 
 
+@pytest.mark.slow
 def test_gestures_drawn_with_a_mouse_are_scored_per_gesture_and_sampling() -> None:
     result = run_dashboard_benchmark(
         idle_seconds=0.5, swipes=1, mouse_rounds=1, mouse_gestures=("swipe_left", "push")

@@ -16,6 +16,8 @@ from wovenskin.recognition import shipped
 from wovenskin.recognition.checkpoint import CheckpointMeta, save_checkpoint
 from wovenskin.recognition.models import build_model, count_parameters
 
+pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
+
 
 def test_measure_latency_interleaves_and_warms_up():
     order: list[str] = []

@@ -9,6 +9,7 @@ from wovenskin.bench.safety import run_safety_benchmark
 from wovenskin.cli import app
 
 
+@pytest.mark.slow
 def test_probe_reports_clearance_and_caps_that_hold() -> None:
     result = run_safety_benchmark(episodes=2, seed=3)
     assert set(result.joint_6_clearance_deg) == {"30", "60", "100", "148"}

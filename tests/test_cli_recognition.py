@@ -2,26 +2,26 @@
 
 from __future__ import annotations
 
-import importlib
 import importlib.util
 import json
 import subprocess
 import sys
-import types
 from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 from typer.testing import CliRunner
 
-import wovenskin.recognition
 from wovenskin.bench import model as bench_model
 from wovenskin.cli import app
+from wovenskin.recognition import captures as captures_module
 from wovenskin.recognition import compare as compare_module
 from wovenskin.recognition.checkpoint import read_meta
 from wovenskin.recognition.datasets import generate_sim_dataset, open_dataset
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.sim.stream import simulate_stream
+
+pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 
 runner = CliRunner()
 TINY_SET = ["--recordings", "3", "--windows", "40", "--invalid-windows", "10", "--seconds", "20"]
@@ -85,14 +85,8 @@ def fake_captures(monkeypatch):
         calls["lopo"] = (Path(path), Path(out_dir), kwargs)
         return SimpleNamespace(to_dict=lambda: {"mean_capture_accuracy": 0.85, "folds": [1, 2]})
 
-    try:
-        module = importlib.import_module("wovenskin.recognition.captures")
-    except ModuleNotFoundError:
-        module = types.ModuleType("wovenskin.recognition.captures")
-        monkeypatch.setitem(sys.modules, module.__name__, module)
-        monkeypatch.setattr(wovenskin.recognition, "captures", module, raising=False)
     for function in (evaluate_captures, train_on_captures, leave_one_participant_out):
-        monkeypatch.setattr(module, function.__name__, function, raising=False)
+        monkeypatch.setattr(captures_module, function.__name__, function)
     return calls
 
 

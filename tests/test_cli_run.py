@@ -148,6 +148,7 @@ def _free_port() -> int:
         return probe.getsockname()[1]
 
 
+@pytest.mark.slow
 def test_run_opens_the_dashboard_by_default_and_ends_after_seconds(model_dir, tmp_path) -> None:
     port = _free_port()
     record = tmp_path / "dash.wsrec"

@@ -14,6 +14,7 @@ from wovenskin.control.poses import (
     default_poses_path,
     set_pose_from_robot,
 )
+from wovenskin.robots import sim
 from wovenskin.robots.base import JointLimits, Pose, Robot, RobotError, RobotState
 
 Q = np.array([0.1, -0.2, 1.5, 0.0, 1.4, -0.3])
@@ -163,7 +164,6 @@ def test_set_pose_from_a_faulted_robot_is_refused(tmp_path) -> None:
 
 
 def test_set_pose_from_the_simulated_arm(tmp_path) -> None:
-    sim = pytest.importorskip("wovenskin.robots.sim")  # another helper's backend
     robot = sim.SimRobot()
     robot.connect()
     pose = set_pose_from_robot(PoseStore.load(tmp_path / "p.toml"), "home", robot)

@@ -32,6 +32,7 @@ from wovenskin.robots.base import (
     RobotError,
     RobotState,
 )
+from wovenskin.robots.sim import SimRobot, tm5_900
 
 
 def rotation_vector_quat(r: np.ndarray) -> np.ndarray:
@@ -387,8 +388,6 @@ def test_joint_6_driven_fast_stops_outside_its_margin_on_the_simulated_arm(speed
     """The probe's case: joint 6 driven toward its limit came within 3.2 deg (60 deg/s) and
     1.5 deg (148 deg/s) of it with a 5 deg margin: the 20 ms look-ahead ignored the
     ~100 ms the arm takes to stop."""
-    from wovenskin.robots.sim import SimRobot, tm5_900
-
     q0 = tm5_900.INITIAL_Q.copy()
     q0[5] = math.radians(230.0)
     limits = SafetyLimits(
@@ -674,10 +673,7 @@ def test_fuzzed_commands_never_break_the_limits_of_the_stand_in(program, robot_t
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(commands, min_size=1, max_size=15))
 def test_fuzzed_commands_never_break_the_limits_of_the_simulated_arm(program) -> None:
-    sim = pytest.importorskip("wovenskin.robots.sim")  # another helper's backend
-    from wovenskin.robots.sim import tm5_900
-
-    robot = sim.SimRobot()
+    robot = SimRobot()
     start = tm5_900.forward_kinematics(tm5_900.INITIAL_Q)[:3, 3]
     box = SafetyLimits(workspace_lower=start - [0.15, 0.2, 0.15], workspace_upper=start + 0.15)
 
@@ -702,6 +698,7 @@ segments = st.lists(
 )
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(segments, st.lists(st.floats(-0.7, 0.7), min_size=6, max_size=6))
 def test_random_twists_keep_the_measured_caps_and_the_box_on_the_simulated_arm(
@@ -710,8 +707,6 @@ def test_random_twists_keep_the_measured_caps_and_the_box_on_the_simulated_arm(
     """Caps hold as the arm reports them (not only as commanded): TCP linear and angular
     speed never above the caps, the TCP never outside the box, no joint inside its margin.
     The probe found 1.03x the linear cap, 1.016x the angular one and 0.13 mm outside."""
-    from wovenskin.robots.sim import SimRobot, tm5_900
-
     q0 = tm5_900.INITIAL_Q + np.asarray(offset)  # postures near singularities too
     start = tm5_900.forward_kinematics(q0)[:3, 3]
     box = SafetyLimits(workspace_lower=start - 0.08, workspace_upper=start + 0.08)
@@ -725,4 +720,3 @@ def test_random_twists_keep_the_measured_caps_and_the_box_on_the_simulated_arm(
             assert box.in_box(state.tcp.position, 1e-9), state.tcp.position - start
             inside = joints.upper - box.joint_margin - state.q
             assert np.all(np.minimum(inside, state.q - joints.lower - box.joint_margin) > -1e-9)
-

@@ -35,6 +35,8 @@ from wovenskin.recording.formats import (
     write_labelled_captures,
 )
 
+pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
+
 HAART = SHARED / "datasets" / "haart" / "haart-train.npz"
 REPO = Path(__file__).resolve().parents[1]
 RATE = 20.0

@@ -22,6 +22,8 @@ from wovenskin.recognition.datasets import DatasetError, generate_sim_dataset, g
 from wovenskin.recognition.report import dataset_fingerprint, evaluate_on_dataset
 from wovenskin.recognition.train import EpochRecord, TrainEvent
 
+pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
+
 TINY_SET = dict(
     n_recordings=3,
     windows_per_recording=40,

@@ -43,6 +43,8 @@ from wovenskin.sim.person import Person
 from wovenskin.sim.physics import SkinPhysics
 from wovenskin.sim.stream import simulate_stream
 
+pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
+
 TINY = dict(
     n_recordings=3,
     windows_per_recording=42,

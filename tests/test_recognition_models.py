@@ -17,6 +17,8 @@ from wovenskin.recognition.models import (
     sinusoidal_encoding,
 )
 
+pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
+
 NAMES = tuple(MODEL_REGISTRY)
 
 

@@ -22,6 +22,8 @@ from wovenskin.recognition.checkpoint import (
 from wovenskin.recognition.models import MODEL_REGISTRY, build_model
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer, export_onnx, softmax
 
+pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
+
 REPO = Path(__file__).resolve().parents[1]
 ATOL = 1e-4
 

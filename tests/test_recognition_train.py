@@ -35,6 +35,8 @@ from wovenskin.recognition.train import (
     write_history,
 )
 
+pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
+
 CLASSES = ("slide_right", "slide_down", "press")
 ROWS, COLS, WINDOW = 6, 8, 16
 DATA_META = {

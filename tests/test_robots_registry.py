@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from wovenskin.robots.registry import make_robot
+from wovenskin.robots.sim import SimRobot
 from wovenskin.robots.techman import TechmanRobot
 from wovenskin.robots.ur import URRobot
 
@@ -71,8 +72,7 @@ def test_ur_spec_names_the_arms_model() -> None:
 
 
 def test_sim_spec() -> None:
-    sim = pytest.importorskip("wovenskin.robots.sim")
-    assert isinstance(make_robot("sim"), sim.SimRobot)
+    assert isinstance(make_robot("sim"), SimRobot)
 
 
 @pytest.mark.parametrize(

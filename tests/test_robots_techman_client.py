@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from wovenskin.robots.base import JointLimits, Pose, RobotError
+from wovenskin.robots.sim import tm5_900
 from wovenskin.robots.techman import FakeListenNode, TechmanRobot
 from wovenskin.robots.techman.ethernet_slave import SvrMode, state_packet
 from wovenskin.robots.techman.protocol import Packet
@@ -257,8 +258,7 @@ def test_stop_cancels_a_move(robot: TechmanRobot, fake: FakeListenNode) -> None:
 
 
 def test_default_limits_are_the_tm5_900() -> None:
-    tm5 = pytest.importorskip("wovenskin.robots.sim.tm5_900")
-    assert TechmanRobot("127.0.0.1").joint_limits() is tm5.JOINT_LIMITS
+    assert TechmanRobot("127.0.0.1").joint_limits() is tm5_900.JOINT_LIMITS
 
 
 # -- the controller as Techman's material describes it ---------------------------------------

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from wovenskin.robots.sim import tm5_900
 from wovenskin.robots.techman.ethernet_slave import SvrMode, read_items, read_state
 from wovenskin.robots.techman.fake_controller import FakeController
 from wovenskin.robots.techman.protocol import (
@@ -186,18 +187,17 @@ def test_state_frames_carry_the_table(clock: Clock, mode: SvrMode) -> None:
 
 
 def test_with_a_kinematic_model_joints_and_tcp_agree(clock: Clock) -> None:
-    tm5 = pytest.importorskip("wovenskin.robots.sim.tm5_900")
     robot = FakeController(
-        np.rad2deg(tm5.INITIAL_Q),
+        np.rad2deg(tm5_900.INITIAL_Q),
         clock=clock,
-        forward_kinematics=tm5.forward_kinematics,
-        jacobian=tm5.jacobian,
+        forward_kinematics=tm5_900.forward_kinematics,
+        jacobian=tm5_900.jacobian,
     )
     start = robot.tcp_wire()
     run(robot, "1", "ContinueVLine(300,2000)\r\nSetContinueVLine(0,50,0,0,0,0)")
     wait(robot, clock, 0.25)
     moved = robot.tcp_wire() - start
     assert 5.0 < moved[1] < 12.5 and abs(moved[0]) < 0.5 and abs(moved[2]) < 0.5
-    pose = tm5.forward_kinematics(np.deg2rad(robot.q_deg))
+    pose = tm5_900.forward_kinematics(np.deg2rad(robot.q_deg))
     np.testing.assert_allclose(pose[:3, 3] * 1000.0, robot.tcp_wire()[:3], atol=1e-6)
     assert np.any(robot.joint_velocity_deg_s != 0.0)

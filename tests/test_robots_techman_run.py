@@ -41,6 +41,7 @@ def run_cli(*args: str, timeout: float = 240.0) -> subprocess.CompletedProcess[s
     return subprocess.run(command, capture_output=True, text=True, timeout=timeout)
 
 
+@pytest.mark.slow
 def test_a_replayed_session_drives_the_fake_controller_cleanly(replay: Path) -> None:
     with FakeListenNode.tm5_900() as fake:
         result = run_cli(

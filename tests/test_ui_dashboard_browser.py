@@ -23,6 +23,8 @@ from wovenskin.control.session import open_session
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.server import BackgroundServer
 
+pytestmark = pytest.mark.browser  # drives chromium: `make test-fast` leaves it out
+
 ARTIFACTS = Path(os.environ.get("WOVENSKIN_ARTIFACTS", Path(__file__).parents[1] / "artifacts"))
 SHOTS = ARTIFACTS / "browser"
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
