@@ -494,25 +494,18 @@ def test_recording_can_start_and_stop_while_running(tmp_path) -> None:
         session.start_recording(path)
         with pytest.raises(RuntimeError, match="already recording"):
             session.start_recording(tmp_path / "other.wsrec")
-        started_at = session.now
         session.run(seconds=1.0)
-        stopped_at = session.now
         assert session.stop_recording() == path
         assert session.stop_recording() is None
+        at_stop = path.read_bytes()
         session.run(seconds=0.5)  # frames after the stop are not written
+        assert path.read_bytes() == at_stop
     finally:
         session.close()
     recording = read_recording(path)
-    # What was read between start and stop, frame by frame: an unpaced source hands over
-    # its frames in blocks whose size depends on the machine's load, so the count is
-    # bounded by the session clock, not by a fixed number of frames.
-    # (A starved source lets the wall clock advance the session clock, so 1 s of session
-    # time may hold fewer frames under load: the count only has to show frames were kept.)
-    where = (
-        f"{len(recording.t)} frames {recording.t[:1]}..{recording.t[-1:]}, "
-        f"session {started_at:.3f}..{stopped_at:.3f} s"
-    )
+    # An unpaced source hands its frames over in blocks whose size depends on the machine's
+    # load, and a starved one lets the wall clock advance the session clock: how many frames
+    # 1 s of session time holds is not fixed. The recording has to hold contiguous frames.
+    where = f"{len(recording.t)} frames {recording.t[:1]}..{recording.t[-1:]}"
     assert len(recording.t) >= 20 and recording.annotations_of("robot"), where
     assert np.allclose(np.diff(recording.t), 0.005), where
-    assert recording.t[-1] <= stopped_at + 1e-9, where
-    assert recording.t[0] >= started_at - 1.0 - 1e-9, where  # the source's 1 s buffer at most
