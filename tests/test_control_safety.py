@@ -613,9 +613,9 @@ def apply(safe: SafetyLayer, kind: str, value, robot_q) -> None:
 
 def assert_safe(safe: SafetyLayer, limits: JointLimits, speed_tolerance: float, box_tol: float):
     state = safe.state()
-    assert state.tcp_speed <= safe.limits.max_linear_speed * (1 + speed_tolerance) + 1e-9
+    assert state.tcp_speed <= safe.limits.max_linear_speed * (1 + speed_tolerance) + 1e-6
     angular = float(np.linalg.norm(state.tcp_twist[3:]))
-    assert angular <= safe.limits.max_angular_speed * (1 + speed_tolerance) + 1e-9
+    assert angular <= safe.limits.max_angular_speed * (1 + speed_tolerance) + 1e-6
     assert safe.limits.in_box(state.tcp.position, box_tol), state.tcp.position
     assert np.all(state.q >= limits.lower - 1e-9) and np.all(state.q <= limits.upper + 1e-9)
 
@@ -680,8 +680,9 @@ def test_fuzzed_commands_never_break_the_limits_of_the_simulated_arm(program) ->
     def joints(values):  # joint targets around the initial pose
         return tm5_900.INITIAL_Q + np.asarray(values) * 0.6
 
-    # caps and box hold as the arm reports them: no tolerance (was 3 % and 2 mm)
-    run_fuzz(robot, box, program, joints, speed_tol=0.0, box_tol=1e-9, substep=0.02)
+    # caps and box hold as the arm reports them: floating-point noise only, 1 um (was 3 %
+    # and 2 mm; a nanometre tolerance let hypothesis fail on 5 nm of rounding)
+    run_fuzz(robot, box, program, joints, speed_tol=0.0, box_tol=1e-6, substep=0.02)
 
 
 segments = st.lists(
@@ -714,9 +715,12 @@ def test_random_twists_keep_the_measured_caps_and_the_box_on_the_simulated_arm(
     joints = robot.joint_limits()
     for twist, seconds, tick in program:
         for _ in drive(safe, clock, twist, seconds, tick):
+            # Tolerances are floating-point noise only (1 um, 1 um/s, 1 urad): hypothesis
+            # once found the TCP 5 nm past a face; the probe behind issue 12 found 0.13 mm
+            # outside and speeds 1.6-3 % over the caps.
             state = robot.state()
-            assert state.tcp_speed <= box.max_linear_speed + 1e-9
-            assert float(np.linalg.norm(state.tcp_twist[3:])) <= box.max_angular_speed + 1e-9
-            assert box.in_box(state.tcp.position, 1e-9), state.tcp.position - start
+            assert state.tcp_speed <= box.max_linear_speed + 1e-6
+            assert float(np.linalg.norm(state.tcp_twist[3:])) <= box.max_angular_speed + 1e-6
+            assert box.in_box(state.tcp.position, 1e-6), state.tcp.position - start
             inside = joints.upper - box.joint_margin - state.q
-            assert np.all(np.minimum(inside, state.q - joints.lower - box.joint_margin) > -1e-9)
+            assert np.all(np.minimum(inside, state.q - joints.lower - box.joint_margin) > -1e-6)
