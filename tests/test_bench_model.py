@@ -13,8 +13,8 @@ from wovenskin.bench import model as bench_model
 from wovenskin.bench.model import measure_latency, measure_throughput, run_model_benchmark
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recognition import shipped
-from wovenskin.recognition.checkpoint import CheckpointMeta, save_checkpoint
-from wovenskin.recognition.models import build_model, count_parameters
+from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.training.models import build_model, count_parameters
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 

@@ -14,10 +14,10 @@ from typer.testing import CliRunner
 
 from wovenskin.bench import model as bench_model
 from wovenskin.cli import app
-from wovenskin.recognition import captures as captures_module
-from wovenskin.recognition import compare as compare_module
-from wovenskin.recognition.checkpoint import read_meta
-from wovenskin.recognition.datasets import generate_sim_dataset, open_dataset
+from wovenskin.training import captures as captures_module
+from wovenskin.training import compare as compare_module
+from wovenskin.training.checkpoint import read_meta
+from wovenskin.training.datasets import generate_sim_dataset, open_dataset
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.sim.stream import simulate_stream
 

@@ -13,9 +13,9 @@ from typer.testing import CliRunner
 from wovenskin.cli import app
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recognition import shipped
-from wovenskin.recognition.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
 from wovenskin.recognition.commandlog import format_command_log, parse_command_log
-from wovenskin.recognition.models import build_model
+from wovenskin.training.models import build_model
 from wovenskin.recognition.pipeline import PipelineSettings, load_recognizer, run_pipeline
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.signal import ConditioningConfig

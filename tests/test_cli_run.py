@@ -16,8 +16,8 @@ from typer.testing import CliRunner
 from wovenskin.cli import app
 from wovenskin.control.trace import TRACE_KEYS, read_trace
 from wovenskin.gestures import CLASS_NAMES
-from wovenskin.recognition.checkpoint import CheckpointMeta, save_checkpoint
-from wovenskin.recognition.models import build_model
+from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.training.models import build_model
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.recording.native import read_recording
 from wovenskin.signal import ConditioningConfig

@@ -13,13 +13,13 @@ import pytest
 import torch
 
 from wovenskin.recognition import onnx_runtime
-from wovenskin.recognition.checkpoint import (
+from wovenskin.training.checkpoint import (
     ONNX_FILE,
     CheckpointError,
     CheckpointMeta,
     save_checkpoint,
 )
-from wovenskin.recognition.models import MODEL_REGISTRY, build_model
+from wovenskin.training.models import MODEL_REGISTRY, build_model
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer, export_onnx, softmax
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out

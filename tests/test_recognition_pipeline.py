@@ -12,9 +12,9 @@ import torch
 from wovenskin.gestures import CLASS_NAMES, INVALID
 from wovenskin.live import LiveBlock, LiveSkin
 from wovenskin.recognition.arbiter import DWELL, LIFT_OFF
-from wovenskin.recognition.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
 from wovenskin.recognition.event_scoring import score_stream
-from wovenskin.recognition.models import build_model
+from wovenskin.training.models import build_model
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.recognition.pipeline import (
     RESET,

@@ -506,8 +506,8 @@ def _json_object(text: str, option: str) -> dict:
 
 def _open_or_build_dataset(data: Path | None, ui: Console):
     """The data set at ``data``, or the default one (generated with a progress bar if missing)."""
-    from wovenskin.recognition.compare import DEFAULT_DATASET_DIR, dataset_progress, ensure_dataset
-    from wovenskin.recognition.report import DatasetSummary
+    from wovenskin.training.compare import DEFAULT_DATASET_DIR, dataset_progress, ensure_dataset
+    from wovenskin.training.report import DatasetSummary
 
     if data is not None or (DEFAULT_DATASET_DIR / "meta.json").is_file():
         return ensure_dataset(data)[0]
@@ -556,10 +556,10 @@ def dataset(
     overwrite: bool = typer.Option(False, help="Replace an existing data set."),
 ) -> None:
     """Build a window data set from simulation or labelled streams."""
-    from wovenskin.recognition.compare import dataset_progress
-    from wovenskin.recognition.datasets import build_dataset_from_streams, generate_sim_dataset
-    from wovenskin.recognition.report import DatasetSummary
-    from wovenskin.recognition.windows import WindowSettings
+    from wovenskin.training.compare import dataset_progress
+    from wovenskin.training.datasets import build_dataset_from_streams, generate_sim_dataset
+    from wovenskin.training.report import DatasetSummary
+    from wovenskin.training.windows import WindowSettings
 
     settings = WindowSettings(recipe=recipe)
 
@@ -608,7 +608,7 @@ def train(
 ) -> None:
     """Train a gesture classifier (PyTorch) with early stopping, checkpoints and resume."""
     _require_torch("wovenskin train")
-    from wovenskin.recognition.compare import (
+    from wovenskin.training.compare import (
         DEFAULT_EPOCHS,
         RUNS_DIR,
         TrainOptions,
@@ -661,7 +661,7 @@ def _check_comparison_dir(out: Path, overwrite: bool, resume: bool) -> None:
     """Refuse to compare into ``out`` when it holds a comparison or a trained model (in
     ``out/<split>/<model>/``) unless resuming it or ``overwrite``."""
     from wovenskin.outputs import OutputExistsError
-    from wovenskin.recognition.compare import COMPARE_FILE
+    from wovenskin.training.compare import COMPARE_FILE
 
     if resume or overwrite or not out.is_dir():
         return
@@ -688,8 +688,8 @@ def _train_on_captures(
     path: Path, out: Path | None, model: str | None, epochs: int | None, seed: int,
     threads: int, resume: bool,
 ) -> None:  # fmt: skip
-    from wovenskin.recognition.captures import train_on_captures
-    from wovenskin.recognition.compare import RUNS_DIR, TrainProgressDisplay
+    from wovenskin.training.captures import train_on_captures
+    from wovenskin.training.compare import RUNS_DIR, TrainProgressDisplay
 
     out = out or RUNS_DIR / "models" / f"captures-{path.stem}"
     console.print(
@@ -768,9 +768,9 @@ def eval_command(
         raise ValueError("--lopo needs --captures FILE")
     from rich.progress import Progress
 
-    from wovenskin.recognition.checkpoint import read_meta
-    from wovenskin.recognition.compare import DEFAULT_DATASET_DIR, RUNS_DIR
-    from wovenskin.recognition.report import evaluate_on_dataset, per_class_table, write_report
+    from wovenskin.training.checkpoint import read_meta
+    from wovenskin.training.compare import DEFAULT_DATASET_DIR, RUNS_DIR
+    from wovenskin.training.report import evaluate_on_dataset, per_class_table, write_report
 
     model_dir = resolve_model_dir(model)
     if data is None:
@@ -814,11 +814,11 @@ def _eval_captures(
 ) -> None:  # fmt: skip
     import json
 
-    from wovenskin.recognition import captures as captures_module
+    from wovenskin.training import captures as captures_module
 
     if lopo:
         _require_torch("wovenskin eval --lopo")
-        from wovenskin.recognition.compare import RUNS_DIR, TrainProgressDisplay
+        from wovenskin.training.compare import RUNS_DIR, TrainProgressDisplay
 
         if model is not None:
             raise ValueError("--lopo trains its own models: name the architecture with --arch")
@@ -880,7 +880,7 @@ def compare(
     import json
 
     _require_torch("wovenskin compare")
-    from wovenskin.recognition.compare import (
+    from wovenskin.training.compare import (
         DEFAULT_EPOCHS,
         TrainOptions,
         TrainProgressDisplay,

@@ -26,7 +26,7 @@ from datetime import UTC, datetime
 import numpy as np
 from rich.table import Table
 
-from wovenskin.recognition.timing import one_core
+from wovenskin.training.timing import one_core
 from wovenskin.signal.calibration import calibrate
 from wovenskin.signal.conditioner import Conditioner
 from wovenskin.signal.config import ConditioningConfig

@@ -35,8 +35,8 @@ from typing import Any
 import numpy as np
 from rich.table import Table
 
-from wovenskin.recognition.timing import WARMUP_CALLS as WARMUP_CALLS  # re-exported
-from wovenskin.recognition.timing import measure_latency, one_core
+from wovenskin.training.timing import WARMUP_CALLS as WARMUP_CALLS  # re-exported
+from wovenskin.training.timing import measure_latency, one_core
 
 PAPER_MS = {"transformer": 15.0, "bilstm": 12.0}
 """The paper's per-window latencies (its hardware) for the transformer and the BiLSTM."""
@@ -180,8 +180,8 @@ def _fresh_candidates(directory: Path, names: list[str]) -> list[_Candidate]:
     import torch
 
     from wovenskin.gestures import CLASS_NAMES
-    from wovenskin.recognition.checkpoint import CheckpointMeta, write_meta
-    from wovenskin.recognition.models import build_model, resolve_hparams
+    from wovenskin.training.checkpoint import CheckpointMeta, write_meta
+    from wovenskin.training.models import build_model, resolve_hparams
     from wovenskin.recognition.onnx_runtime import export_onnx
     from wovenskin.signal.config import ConditioningConfig
 
@@ -210,8 +210,8 @@ def _shipped_candidate() -> _Candidate | None:
     """The shipped default model, when the package holds one (its torch twin from its meta)."""
     import torch
 
-    from wovenskin.recognition.checkpoint import WEIGHTS_FILE, load_checkpoint, read_meta
-    from wovenskin.recognition.models import build_model
+    from wovenskin.training.checkpoint import WEIGHTS_FILE, load_checkpoint, read_meta
+    from wovenskin.training.models import build_model
     from wovenskin.recognition.shipped import ModelNotFoundError, default_model_dir
 
     try:
@@ -240,7 +240,7 @@ def run_model_benchmark(
     import onnxruntime
     import torch
 
-    from wovenskin.recognition.models import MODEL_REGISTRY, count_parameters
+    from wovenskin.training.models import MODEL_REGISTRY, count_parameters
     from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 
     if batch_size < 1:

@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from rich.table import Table
 
-from wovenskin.recognition.timing import one_core
+from wovenskin.training.timing import one_core
 from wovenskin.sim.performances import perform
 from wovenskin.sim.person import Person
 from wovenskin.sim.physics import SkinModel, SkinPhysics

@@ -1,1 +1,1 @@
-"""Gesture recognition: window data sets, models, training, evaluation, streaming recogniser and arbiter."""  # noqa: E501
+"""Live gesture recognition (numpy + ONNX Runtime): the streaming recogniser, the arbiter that turns its output into commands, the shipped models and the scoring of a command log."""  # noqa: E501

@@ -7,8 +7,8 @@ calls before feeding a model: it refuses frames from another grid, window length
 rate or conditioning with a one-line ``ValueError`` naming what differs.
 
 Both :mod:`~wovenskin.recognition.onnx_runtime` (torch-free inference) and
-:mod:`~wovenskin.recognition.checkpoint` (saving and loading torch models) build on this
-module, which imports neither; :mod:`~wovenskin.recognition.checkpoint` re-exports every
+:mod:`~wovenskin.training.checkpoint` (saving and loading torch models) build on this
+module, which imports neither; :mod:`~wovenskin.training.checkpoint` re-exports every
 name here.
 """
 

@@ -1,4 +1,4 @@
-"""Tests of wovenskin.recognition.checkpoint: save/load round trip, meta, input contract."""
+"""Tests of wovenskin.training.checkpoint: save/load round trip, meta, input contract."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import torch
 
 import wovenskin
 from wovenskin.gestures import CLASS_NAMES
-from wovenskin.recognition.checkpoint import (
+from wovenskin.training.checkpoint import (
     META_FILE,
     ONNX_FILE,
     WEIGHTS_FILE,
@@ -21,7 +21,7 @@ from wovenskin.recognition.checkpoint import (
     read_meta,
     save_checkpoint,
 )
-from wovenskin.recognition.models import build_model, resolve_hparams
+from wovenskin.training.models import build_model, resolve_hparams
 from wovenskin.signal.config import ConditioningConfig
 
 

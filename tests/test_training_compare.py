@@ -1,4 +1,4 @@
-"""Tests of wovenskin.recognition.compare: default data set, training on a split, comparison."""
+"""Tests of wovenskin.training.compare: default data set, training on a split, comparison."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from wovenskin.recognition import compare as compare_module
-from wovenskin.recognition.checkpoint import read_meta
-from wovenskin.recognition.compare import (
+from wovenskin.training import compare as compare_module
+from wovenskin.training.checkpoint import read_meta
+from wovenskin.training.compare import (
     COMPARE_FILE,
     TrainOptions,
     TrainProgressDisplay,
@@ -18,9 +18,9 @@ from wovenskin.recognition.compare import (
     ensure_dataset,
     train_on_dataset,
 )
-from wovenskin.recognition.datasets import DatasetError, generate_sim_dataset, grouped_split
-from wovenskin.recognition.report import dataset_fingerprint, evaluate_on_dataset
-from wovenskin.recognition.train import EpochRecord, TrainEvent
+from wovenskin.training.datasets import DatasetError, generate_sim_dataset, grouped_split
+from wovenskin.training.report import dataset_fingerprint, evaluate_on_dataset
+from wovenskin.training.train import EpochRecord, TrainEvent
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 

@@ -1,14 +1,14 @@
-"""Tests of wovenskin.recognition.stream_windows: windows labelled by what they show."""
+"""Tests of wovenskin.training.stream_windows: windows labelled by what they show."""
 
 import numpy as np
 import pytest
 
-from wovenskin.recognition.stream_windows import (
+from wovenskin.training.stream_windows import (
     characteristic_spans,
     sample_stream_windows,
     window_labels,
 )
-from wovenskin.recognition.windows import SOURCE_CODES, FrameEvents, WindowSettings
+from wovenskin.training.windows import SOURCE_CODES, FrameEvents, WindowSettings
 
 INVALID = 9
 SETTINGS = WindowSettings(window_frames=30, min_motion_frames=6, motion_lag_frames=6)

@@ -71,7 +71,7 @@ def _versions() -> tuple[str, str]:
 
 
 def _check_model_matches(model: nn.Module, meta: CheckpointMeta) -> None:
-    from wovenskin.recognition.models import MODEL_REGISTRY
+    from wovenskin.training.models import MODEL_REGISTRY
 
     expected_type = MODEL_REGISTRY.get(meta.model_name)
     if expected_type is None:
@@ -126,7 +126,7 @@ def load_checkpoint(directory: str | Path) -> tuple[nn.Module, CheckpointMeta]:
     """Rebuild the torch model of a checkpoint directory, in eval mode, with its meta."""
     import torch
 
-    from wovenskin.recognition.models import build_model
+    from wovenskin.training.models import build_model
 
     meta = read_meta(directory)
     path = Path(directory) / WEIGHTS_FILE

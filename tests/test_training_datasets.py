@@ -13,7 +13,7 @@ import pytest
 from tests.conftest import SHARED
 from wovenskin.gestures import CLASS_NAMES, INVALID
 from wovenskin.outputs import OutputExistsError
-from wovenskin.recognition.datasets import (
+from wovenskin.training.datasets import (
     GROUP_KEYS,
     CaptureNormalisation,
     DatasetError,
@@ -31,7 +31,7 @@ from wovenskin.recognition.datasets import (
     sim_skin_name,
     stream_identity,
 )
-from wovenskin.recognition.windows import SOURCE_CODES, SOURCE_NAMES
+from wovenskin.training.windows import SOURCE_CODES, SOURCE_NAMES
 from wovenskin.recording.formats import (
     LabelledCaptures,
     read_labelled_stream,
@@ -127,7 +127,7 @@ def test_sim_set_contents(sim_set):
 def test_two_workers_run_from_a_script_without_a_main_guard(tmp_path):
     script = tmp_path / "make.py"
     script.write_text(
-        "from wovenskin.recognition.datasets import generate_sim_dataset\n"
+        "from wovenskin.training.datasets import generate_sim_dataset\n"
         f"ds = generate_sim_dataset({str(tmp_path / 'ds')!r}, n_recordings=2, workers=2,\n"
         "    windows_per_recording=14, invalid_windows_per_recording=2, seconds_per_recording=8)\n"
         "print(len(ds))\n"

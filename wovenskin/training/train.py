@@ -1,6 +1,6 @@
 """Training and evaluation of the gesture classifiers (PyTorch, CPU-friendly, resumable).
 
-:func:`train_model` trains a registry model (:mod:`~wovenskin.recognition.models`) on a
+:func:`train_model` trains a registry model (:mod:`~wovenskin.training.models`) on a
 window data set given as plain arrays -- ``windows`` ``(N, W, R, C)`` (float16 or float32,
 memory-mapped is fine: batches are read and converted one at a time), ``labels`` ``(N,)``
 int, class names, and index arrays of the training and validation windows -- plus the data
@@ -22,12 +22,12 @@ the description of the training data). It uses
   ``learning_curve.png`` in the output directory, and ``training_state.pt`` (model, optimiser,
   schedule, best weights, history), so ``resume=True`` continues an interrupted run and
   ends with the same weights as an uninterrupted one;
-- the best model saved as a checkpoint (:mod:`~wovenskin.recognition.checkpoint`) whenever
+- the best model saved as a checkpoint (:mod:`~wovenskin.training.checkpoint`) whenever
   it improves, and exported to ONNX, with its validation metrics, at the end.
 
 :func:`evaluate` scores a torch model or an
 :class:`~wovenskin.recognition.onnx_runtime.OnnxRecognizer` on windows;
-:func:`classification_metrics` (from :mod:`~wovenskin.recognition.metrics`, torch-free)
+:func:`classification_metrics` (from :mod:`~wovenskin.training.metrics`, torch-free)
 computes accuracy, macro-F1, per-class precision, recall and F1 and the confusion matrix.
 """
 
@@ -45,17 +45,17 @@ import numpy as np
 import torch
 from torch import nn
 
-from wovenskin.recognition.checkpoint import (
+from wovenskin.training.checkpoint import (
     CheckpointMeta,
     atomic_write_bytes,
     save_checkpoint,
 )
-from wovenskin.recognition.metrics import (  # ClassScore is re-exported for users of train
+from wovenskin.training.metrics import (  # ClassScore is re-exported for users of train
     ClassificationMetrics,
     ClassScore,  # noqa: F401
     classification_metrics,
 )
-from wovenskin.recognition.models import build_model, resolve_hparams
+from wovenskin.training.models import build_model, resolve_hparams
 
 STATE_FILE = "training_state.pt"
 EVAL_BATCH = 512

@@ -61,8 +61,8 @@ from scipy.sparse.csgraph import connected_components
 from wovenskin import __version__
 from wovenskin.gestures import CLASS_NAMES, INVALID
 from wovenskin.outputs import OutputExistsError
-from wovenskin.recognition.stream_windows import characteristic_spans, sample_stream_windows
-from wovenskin.recognition.windows import (
+from wovenskin.training.stream_windows import characteristic_spans, sample_stream_windows
+from wovenskin.training.windows import (
     SOURCE_CODES,
     SOURCE_NAMES,
     FrameEvents,

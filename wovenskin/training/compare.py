@@ -1,10 +1,10 @@
 """Training on window data sets, and side-by-side comparison of the classifiers.
 
 This module is the layer between the ``wovenskin train`` / ``compare`` commands and
-:func:`~wovenskin.recognition.train.train_model`:
+:func:`~wovenskin.training.train.train_model`:
 
 - :func:`ensure_dataset` opens a data set directory, or builds the default simulated set
-  there (the paper's size, :func:`~wovenskin.recognition.datasets.generate_sim_dataset`
+  there (the paper's size, :func:`~wovenskin.training.datasets.generate_sim_dataset`
   defaults) when it is missing -- only for the default location, so a mistyped path is an
   error, not a 2-minute surprise.
 - :func:`train_on_dataset` splits a data set (:func:`~.report.dataset_split`), trains one
@@ -45,14 +45,14 @@ from rich.progress import (
 )
 from rich.table import Table
 
-from wovenskin.recognition.datasets import (
+from wovenskin.training.datasets import (
     DatasetError,
     ProgressCallback,
     WindowDataset,
     generate_sim_dataset,
     open_dataset,
 )
-from wovenskin.recognition.report import (
+from wovenskin.training.report import (
     DEFAULT_VAL_FRACTION,
     EvalReport,
     dataset_split,
@@ -62,7 +62,7 @@ from wovenskin.recognition.report import (
 )
 
 if TYPE_CHECKING:
-    from wovenskin.recognition.train import TrainEvent, TrainResult
+    from wovenskin.training.train import TrainEvent, TrainResult
 
 RUNS_DIR = Path("runs")
 DEFAULT_DATASET_DIR = RUNS_DIR / "datasets" / "sim-default"
@@ -129,7 +129,7 @@ def train_on_dataset(
     The checkpoint (``out_dir``) records the data set's fingerprint and the split next to
     the data set's own description.
     """
-    from wovenskin.recognition.train import train_model
+    from wovenskin.training.train import train_model
 
     options = options or TrainOptions()
     if split not in TRAIN_SPLITS:
@@ -337,10 +337,10 @@ def compare_models(
     also runs the whole live pipeline on them (:func:`score_on_streams`): event F1, false
     activations per minute and latency, the figures that matter to a user.
     """
-    from wovenskin.recognition.checkpoint import load_checkpoint
-    from wovenskin.recognition.models import MODEL_REGISTRY, count_parameters
+    from wovenskin.training.checkpoint import load_checkpoint
+    from wovenskin.training.models import MODEL_REGISTRY, count_parameters
     from wovenskin.recognition.onnx_runtime import OnnxRecognizer
-    from wovenskin.recognition.timing import measure_latency, one_core
+    from wovenskin.training.timing import measure_latency, one_core
 
     models = list(models or MODEL_REGISTRY)
     unknown = [m for m in models if m not in MODEL_REGISTRY]

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wovenskin.recognition.windows import (
+from wovenskin.training.windows import (
     SOURCE_CODES,
     FrameEvents,
     WindowBatch,

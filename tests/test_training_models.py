@@ -1,11 +1,11 @@
-"""Tests of wovenskin.recognition.models: shapes, contracts, causality, registry."""
+"""Tests of wovenskin.training.models: shapes, contracts, causality, registry."""
 
 from __future__ import annotations
 
 import pytest
 import torch
 
-from wovenskin.recognition.models import (
+from wovenskin.training.models import (
     MODEL_REGISTRY,
     BiLSTM,
     ConvTransformer,
@@ -229,7 +229,7 @@ def test_without_window_norm_the_scale_reaches_the_network() -> None:
 
 
 def test_motion_channel_shows_which_way_a_blob_moves() -> None:
-    from wovenskin.recognition.models import FrameStem
+    from wovenskin.training.models import FrameStem
 
     stem = FrameStem(6, 8, channels=4, embed_dim=16)
     window = torch.zeros(1, 10, 6, 8)

@@ -9,7 +9,7 @@ Preprocessing (:class:`CaptureRecipe`, recorded in every checkpoint and replayed
 evaluation):
 
 1. each capture's valid frames are normalised on their own
-   (:class:`~wovenskin.recognition.datasets.CaptureNormalisation`: minus an untouched
+   (:class:`~wovenskin.training.datasets.CaptureNormalisation`: minus an untouched
    reading, divided by the capture's strong readings), so people who press with very
    different force look alike;
 2. every ``frame_step`` consecutive frames are averaged into one model frame (HAART:
@@ -18,7 +18,7 @@ evaluation):
    per-frame convolutional stem, most of the cost of a model, runs half as often;
 3. windows of ``window_frames`` model frames (default 2 s) are classified.
 
-Training (:func:`train_on_captures`) runs :func:`~wovenskin.recognition.train.train_model`
+Training (:func:`train_on_captures`) runs :func:`~wovenskin.training.train.train_model`
 on a :class:`CaptureWindowArray`: every epoch draws fresh windows, each at a random
 position of a training capture and under a random symmetry of the grid (flips, and
 transposition on square grids: a person may touch from any side), so six or seven
@@ -51,15 +51,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from wovenskin.recognition.checkpoint import CheckpointMeta, atomic_write_bytes
-from wovenskin.recognition.datasets import CaptureNormalisation
-from wovenskin.recognition.metrics import ClassificationMetrics, classification_metrics
-from wovenskin.recognition.windows import capture_window_ends, capture_windows
+from wovenskin.training.checkpoint import CheckpointMeta, atomic_write_bytes
+from wovenskin.training.datasets import CaptureNormalisation
+from wovenskin.training.metrics import ClassificationMetrics, classification_metrics
+from wovenskin.training.windows import capture_window_ends, capture_windows
 from wovenskin.recording.formats import LabelledCaptures
 
 if TYPE_CHECKING:
     from wovenskin.recognition.onnx_runtime import OnnxRecognizer
-    from wovenskin.recognition.train import TrainEvent, TrainResult
+    from wovenskin.training.train import TrainEvent, TrainResult
 
 CAPTURE_HPARAMS: dict[str, dict[str, Any]] = {
     "tcn": {"stem_channels": 8, "dim": 32, "window_norm": False},
@@ -215,7 +215,7 @@ def _capture_digest(frames: np.ndarray) -> str:
 class CaptureWindowArray:
     """A read-only ``(N, W, R, C)`` float32 window array over prepared captures.
 
-    It is what :func:`~wovenskin.recognition.train.train_model` reads batches from.
+    It is what :func:`~wovenskin.training.train.train_model` reads batches from.
     Indices ``[0, n_random)`` are random windows: slot ``i`` belongs to capture
     ``random_captures[i]``, and every read draws a fresh position in that capture and
     (``symmetries``) a random flip/transposition, from ``SeedSequence(seed, crc32 of
@@ -451,7 +451,7 @@ def _train_captures(
     """Train ``recipe`` on captures ``train_ids``, validating on ``val_ids``; the core of
     :func:`train_on_captures` and every LOPO fold.  The normalisation's reference scale
     comes from the training captures alone."""
-    from wovenskin.recognition.train import train_model
+    from wovenskin.training.train import train_model
 
     norm = recipe.normalisation.resolved(subset(captures, train_ids))
     prepared = prepare_captures(captures, norm, recipe.frame_step, np.union1d(train_ids, val_ids))
@@ -547,7 +547,7 @@ def train_on_captures(
     :data:`CAPTURE_HPARAMS` or its registry defaults.  The checkpoint's ``meta.json``
     records the class names, the capture rate, the window, the normalisation and frame
     step (its ``conditioning``) and the recipe, which is all :func:`evaluate_captures`
-    needs.  ``progress`` gets the :class:`~wovenskin.recognition.train.TrainEvent` of
+    needs.  ``progress`` gets the :class:`~wovenskin.training.train.TrainEvent` of
     every batch and epoch.  Needs torch.
     """
     recipe = _recipe_for(recipe, model, epochs)

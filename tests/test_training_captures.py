@@ -1,4 +1,4 @@
-"""Tests of wovenskin.recognition.captures: training on labelled captures, capture scoring, LOPO."""
+"""Tests of wovenskin.training.captures: training on labelled captures, capture scoring, LOPO."""
 
 import json
 import shutil
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import SHARED
-from wovenskin.recognition.captures import (
+from wovenskin.training.captures import (
     CaptureRecipe,
     CaptureWindowArray,
     evaluate_captures,
@@ -26,9 +26,9 @@ from wovenskin.recognition.captures import (
     train_on_captures,
     window_ending,
 )
-from wovenskin.recognition.checkpoint import read_meta
-from wovenskin.recognition.datasets import CaptureNormalisation
-from wovenskin.recognition.windows import capture_windows
+from wovenskin.training.checkpoint import read_meta
+from wovenskin.training.datasets import CaptureNormalisation
+from wovenskin.training.windows import capture_windows
 from wovenskin.recording.formats import (
     LabelledCaptures,
     read_labelled_captures,
@@ -251,7 +251,7 @@ def test_evaluation_needs_no_torch(trained):
     script = textwrap.dedent(
         f"""
         import sys
-        from wovenskin.recognition.captures import evaluate_captures
+        from wovenskin.training.captures import evaluate_captures
         d = evaluate_captures({str(path)!r}, {str(model_dir)!r}).to_dict()
         print("CAPTURES", d["n_captures"])
         print("TORCH", sorted(m for m in sys.modules if m == "torch" or m.startswith("torch.")))

@@ -1,4 +1,4 @@
-"""Tests of wovenskin.recognition.report: splits, ONNX evaluation, leakage, report files."""
+"""Tests of wovenskin.training.report: splits, ONNX evaluation, leakage, report files."""
 
 from __future__ import annotations
 
@@ -10,18 +10,18 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from wovenskin.recognition.checkpoint import read_meta, write_meta
-from wovenskin.recognition.compare import TrainOptions, train_on_dataset
-from wovenskin.recognition.datasets import (
+from wovenskin.training.checkpoint import read_meta, write_meta
+from wovenskin.training.compare import TrainOptions, train_on_dataset
+from wovenskin.training.datasets import (
     DatasetError,
     generate_sim_dataset,
     grouped_split,
     open_dataset,
     random_split,
 )
-from wovenskin.recognition.metrics import classification_metrics
+from wovenskin.training.metrics import classification_metrics
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
-from wovenskin.recognition.report import (
+from wovenskin.training.report import (
     CONFUSION_JSON,
     CONFUSION_PNG,
     METRICS_FILE,

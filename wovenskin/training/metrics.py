@@ -2,9 +2,9 @@
 
 :func:`classification_metrics` gives accuracy, macro-F1, per-class precision, recall, F1
 and support, and the confusion matrix (``confusion[true][predicted]``) as a
-:class:`ClassificationMetrics`. Training (:mod:`~wovenskin.recognition.train`, which
+:class:`ClassificationMetrics`. Training (:mod:`~wovenskin.training.train`, which
 re-exports these names) and torch-free evaluation with ONNX Runtime
-(:mod:`~wovenskin.recognition.report`) share it.
+(:mod:`~wovenskin.training.report`) share it.
 """
 
 from __future__ import annotations

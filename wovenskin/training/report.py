@@ -5,7 +5,7 @@ write about data and models, and it never imports torch:
 
 - :func:`dataset_split` picks the windows a model is scored on: the validation side of
   the honest grouped split or of the paper's random 85/15 split
-  (:mod:`~wovenskin.recognition.datasets`), or every window (``"all"``, for a held-out
+  (:mod:`~wovenskin.training.datasets`), or every window (``"all"``, for a held-out
   data set). :func:`split_record` describes a split so training can store it in the
   checkpoint and evaluation can rebuild exactly the same one.
 - :func:`evaluate_on_dataset` runs a checkpoint's ONNX graph
@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from rich.table import Table
 
-from wovenskin.recognition.datasets import (
+from wovenskin.training.datasets import (
     DatasetError,
     Split,
     WindowDataset,
@@ -43,7 +43,7 @@ from wovenskin.recognition.datasets import (
     open_dataset,
     random_split,
 )
-from wovenskin.recognition.metrics import ClassificationMetrics, classification_metrics
+from wovenskin.training.metrics import ClassificationMetrics, classification_metrics
 
 SPLITS = ("grouped", "random", "all")
 """Window sets a model can be scored on (``all``: every window of the data set)."""

@@ -1,4 +1,4 @@
-"""Tests of window extraction and the paper's augmentation (wovenskin.recognition.windows).
+"""Tests of window extraction and the paper's augmentation (wovenskin.training.windows).
 
 Most tests run on a synthetic recording whose channels record where every window frame
 came from, so each window can be traced back to the recording frames it was made of:
@@ -19,7 +19,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from wovenskin.recognition.windows import (
+from wovenskin.training.windows import (
     SOURCE_CODES,
     FrameEvents,
     WindowSettings,

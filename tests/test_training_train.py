@@ -1,4 +1,4 @@
-"""Tests of wovenskin.recognition.train: metrics, training, early stopping, resume, budget."""
+"""Tests of wovenskin.training.train: metrics, training, early stopping, resume, budget."""
 
 from __future__ import annotations
 
@@ -11,17 +11,17 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from wovenskin.recognition import train as train_module
-from wovenskin.recognition.checkpoint import (
+from wovenskin.training import train as train_module
+from wovenskin.training.checkpoint import (
     META_FILE,
     ONNX_FILE,
     WEIGHTS_FILE,
     load_checkpoint,
     read_meta,
 )
-from wovenskin.recognition.models import build_model
+from wovenskin.training.models import build_model
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
-from wovenskin.recognition.train import (
+from wovenskin.training.train import (
     CURVE_FILE,
     HISTORY_FILE,
     STATE_FILE,
