@@ -14,11 +14,13 @@ import os
 from pathlib import Path
 from typing import IO
 
+from wovenskin.errors import WovenskinError
+
 PYTHON_SWITCH = "overwrite=True"
 CLI_SWITCH = "--overwrite"
 
 
-class OutputExistsError(FileExistsError):
+class OutputExistsError(WovenskinError, FileExistsError):
     """An output exists and replacing it was not asked for.
 
     ``str(error)`` names the Python keyword; :meth:`message` names any other switch (the

@@ -1,0 +1,5 @@
+"""``python -m wovenskin.cli``: the command line."""
+
+from wovenskin.cli import main
+
+main()

@@ -1,0 +1,156 @@
+"""The ``wovenskin`` command line (Typer + Rich).
+
+Each command is a thin layer over a library function; heavy imports happen inside the
+commands so ``wovenskin --help`` stays instant.  Errors a user can cause (a missing file, a
+bad option, an unplugged device) end with one red line and exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+app = typer.Typer(
+    help="Gesture control of a robot arm with a woven capacitive tactile skin.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+bench_app = typer.Typer(help="Benchmarks: print measured figures and ratios.", no_args_is_help=True)
+app.add_typer(bench_app, name="bench")
+
+# Not on a terminal (a pipe, a file, a script) lines are never wrapped at 80 columns: a
+# path or a message stays one line that a script can read.
+console = Console(soft_wrap=not sys.stdout.isatty())
+err_console = Console(stderr=True, soft_wrap=not sys.stderr.isatty())
+
+
+def _flags_without_type() -> None:
+    """Show on/off options as flags in ``--help``: typer 0.2x labels every flag (``--help``,
+    ``--version``, ``--overwrite``) ``<bool>``, as if it took a value.  Flags get no type
+    column; every other option keeps typer's own."""
+    from typer.core import TyperOption
+
+    original = TyperOption.display_type_rich
+    if getattr(original, "_wovenskin", False):
+        return
+
+    def display_type_rich(self, ctx):  # noqa: ANN001 - typer's signature
+        if getattr(self, "is_flag", False):
+            return None
+        return original(self, ctx)
+
+    display_type_rich._wovenskin = True  # type: ignore[attr-defined]
+    TyperOption.display_type_rich = display_type_rich  # type: ignore[method-assign]
+
+
+_flags_without_type()
+
+SKIN_HELP = "Skin source: sim, serial:PORT[?format=text&order=col-major] or replay:FILE[?speed=2]."
+
+
+def _version(value: bool) -> None:
+    if value:
+        from wovenskin import __version__
+
+        console.print(f"wovenskin {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="Print the version."
+    ),
+) -> None:
+    """Gesture control of a robot arm with a woven capacitive tactile skin."""
+
+
+def user_errors(fn):
+    """Turn expected user errors into one red line and exit code 2.
+
+    An output that exists (:class:`~wovenskin.outputs.OutputExistsError`, raised by every
+    writer) is refused naming ``--overwrite``, the option each writing command has."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from wovenskin.outputs import CLI_SWITCH, OutputExistsError
+        from wovenskin.recording.formats import FormatError
+
+        try:
+            return fn(*args, **kwargs)
+        except (FormatError, ValueError, FileNotFoundError, FileExistsError, OSError) as exc:
+            text = exc.message(CLI_SWITCH) if isinstance(exc, OutputExistsError) else str(exc)
+            message = " ".join(text.split()) or type(exc).__name__
+            err_console.print(f"[red]error:[/] {escape(message)}", soft_wrap=True, highlight=False)
+            raise typer.Exit(2) from None
+
+    return wrapper
+
+
+pose_app = typer.Typer(help="Named robot poses: the task's initial pose and home.")
+app.add_typer(pose_app, name="pose")
+
+
+def robot_errors(fn):
+    """Robot errors (one line) end like user errors: a red line and exit code 2."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from wovenskin.robots.base import RobotError
+
+        try:
+            return fn(*args, **kwargs)
+        except RobotError as exc:
+            raise ValueError(f"robot: {exc}") from None
+
+    return wrapper
+
+
+def show_bench(result, json_out: bool) -> None:
+    """A benchmark's figures: one JSON object, or its Rich table."""
+    if json_out:
+        import json
+
+        print(json.dumps(result.to_dict()))
+    else:
+        console.print(result.table())
+
+
+def warn(message: str) -> None:
+    err_console.print(f"[yellow]warning:[/] {escape(message)}", soft_wrap=True, highlight=False)
+
+
+MODEL_HELP = "Checkpoint directory with model.onnx (default: the shipped model)."
+
+
+ROBOT_HELP = (
+    "Robot: sim (the simulated TM5-900), tm:HOST[:PORT][?listen_port=N&state_port=N] "
+    "(Techman, docs/techman.md) or ur:HOST[?model=ur5e] (UR: ur3e, ur5e, ur10e, ur16e); "
+    "any kind takes ?safety=degraded to accept an arm without kinematics (docs/safety.md)."
+)
+
+
+def pipeline_settings(recognizer, every: int, dwell_ms: float, min_probability: float | None):
+    """Pipeline settings: the options given, else the model's recommendation, else defaults."""
+    from wovenskin.recognition.pipeline import PipelineSettings, arbiter_settings_for_model
+
+    arbiter = arbiter_settings_for_model(
+        recognizer, dwell_s=dwell_ms / 1000, min_probability=min_probability
+    )
+    return PipelineSettings(every=every, arbiter=arbiter)
+
+
+TORCH_HINT = "pip install 'wovenskin[train]'"
+
+
+def require_torch(command: str) -> None:
+    """Refuse a training command in one line when PyTorch is not installed."""
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is None:
+        raise ValueError(f"{command} needs PyTorch, which is not installed: {TORCH_HINT}")

@@ -1,0 +1,248 @@
+"""``wovenskin bench ...``: benchmarks that print measured figures and ratios."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from wovenskin.cli.app import (
+    MODEL_HELP,
+    bench_app,
+    console,
+    err_console,
+    pipeline_settings,
+    require_torch,
+    show_bench,
+    user_errors,
+    warn,
+)
+
+
+@bench_app.command("io")
+@user_errors
+def bench_io(
+    frames: int = typer.Option(20000, help="Frames to push through each stage."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Decode and conditioning throughput for a 10 x 10 skin on one core."""
+
+    from wovenskin.bench.io import run_io_benchmark
+
+    result = run_io_benchmark(n_frames=frames)
+    show_bench(result, json_out)
+
+
+@bench_app.command("serial")
+@user_errors
+def bench_serial(
+    stalls: int = typer.Option(10, help="Device stalls to time."),
+    stall_ms: float = typer.Option(30.0, help="The reader's stall threshold."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Serial reader over a real pseudo-terminal: frames, errors, stall-report delay."""
+
+    from wovenskin.bench.serial import run_serial_benchmark
+
+    result = run_serial_benchmark(stalls, stall_ms)
+    show_bench(result, json_out)
+
+
+@bench_app.command("sim")
+@user_errors
+def bench_sim(
+    seconds: float = typer.Option(60.0, help="Length of the simulated stream to time."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """How many times faster than real time the simulated skin renders, on one core."""
+
+    from wovenskin.bench.sim import run_sim_benchmark
+
+    result = run_sim_benchmark(seconds)
+    show_bench(result, json_out)
+
+
+@bench_app.command("detection")
+@user_errors
+def bench_detection(
+    seeds: int = typer.Option(20, help="Simulated skins/people (seeds 0..N-1)."),
+    seconds: float = typer.Option(60.0, help="Length of each simulated stream."),
+) -> None:
+    """Contact detection against the simulator's ground truth: phantoms, misses, release."""
+    from wovenskin.bench.detection import run_detection_benchmark
+
+    with console.status(f"conditioning {seeds} simulated streams of {seconds:g} s..."):
+        report = run_detection_benchmark(range(seeds), seconds)
+    for line in report.lines():
+        console.print(line, highlight=False, soft_wrap=True)
+    for seed, label, frac, snr in report.weak_events():
+        console.print(f"weak event: seed {seed} {label} touched {frac:.2f} peak {snr:.0f} x noise")
+
+
+# ----------------------------------------------------------------- recognition: data, models
+
+
+@bench_app.command("recognition")
+@user_errors
+def bench_recognition(
+    model: Path = typer.Option(None, help=MODEL_HELP),
+    streams_per_condition: int = typer.Option(3, help="Unseen simulated streams per condition."),
+    seconds: float = typer.Option(60.0, help="Length of each simulated stream."),
+    seed: int = typer.Option(
+        9000, help="Base seed; each stream's seed derives from it, the condition and the stream."
+    ),
+    conditions: str = typer.Option(
+        None, help="Comma-separated subset of the conditions (default: all of them)."
+    ),
+    min_probability: float = typer.Option(
+        None, help="Least class probability that counts (default: the model's recommendation)."
+    ),
+    threads: int = typer.Option(1, help="ONNX Runtime threads for the model."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """The live pipeline on unseen simulated streams by condition: F1, false alarms, latency."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from wovenskin.bench.recognition import condition_names, run_recognition_benchmark
+    from wovenskin.recognition.pipeline import load_recognizer
+
+    names = condition_names(conditions)
+    recognizer = load_recognizer(model, threads=threads)
+    settings = pipeline_settings(recognizer, 1, 100.0, min_probability)
+    bar = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=err_console,
+    )
+    task = bar.add_task("bench recognition", total=len(names) * streams_per_condition)
+
+    def update(done: int, total: int, what: str) -> None:
+        bar.update(task, completed=done, total=total, description=f"bench recognition: {what}")
+
+    with bar:
+        result = run_recognition_benchmark(
+            recognizer, settings, names, streams_per_condition, seconds, seed, progress=update
+        )
+    for message in result.warnings:
+        warn(message)
+    show_bench(result, json_out)
+    if json_out:
+        err_console.print(f"wall time {result.wall_s:.1f} s", highlight=False)
+
+
+@bench_app.command("model")
+@user_errors
+def bench_model(
+    repeats: int = typer.Option(500, help="Timed batch-1 calls per model and runtime."),
+    batch_size: int = typer.Option(256, help="Batch of the throughput figures."),
+    shipped: bool = typer.Option(True, help="Also time the shipped default model."),
+    seconds: float = typer.Option(1.0, help="Seconds of calls behind each throughput figure."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Per-window latency (batch 1, one thread) and throughput on ONNX Runtime and torch."""
+
+    require_torch("wovenskin bench model")
+    from wovenskin.bench.model import run_model_benchmark
+
+    with err_console.status("benchmarking models...") as status:
+        result = run_model_benchmark(
+            repeats, batch_size, include_shipped=shipped, throughput_seconds=seconds,
+            progress=lambda message: status.update(f"bench model: {message}"),
+        )  # fmt: skip
+    show_bench(result, json_out)
+
+
+# ----------------------------------------------------------------------- robot control
+
+
+@bench_app.command("control")
+@user_errors
+def bench_control(
+    model: Path = typer.Option(None, help=MODEL_HELP),
+    loop_seconds: float = typer.Option(5.0, help="Seconds of the real-time control loop."),
+    streams: int = typer.Option(2, help="Simulated streams behind the latency figures."),
+    stream_seconds: float = typer.Option(40.0, help="Length of each simulated stream."),
+    ik_steps: int = typer.Option(1000, help="Timed IK steps."),
+    stops: bool = typer.Option(
+        True, "--stops/--no-stops", help="Measure stop times after release, STOP and watchdog."
+    ),
+    stop_robot: str = typer.Option(
+        "sim",
+        help="The arm behind the stop times: 'sim' (simulated clock) or 'techman-fake' (the "
+        "Techman client against the fake Techman controller, real time, ~3 min).",
+    ),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """IK step time, control-loop rate and jitter, first contact to first motion, stop
+    times. ``--loop-seconds 0 --streams 0`` measures only the IK and the stops."""
+
+    from wovenskin.bench.control import run_control_benchmark
+
+    with err_console.status("benchmarking the control loop..."):
+        result = run_control_benchmark(
+            model, loop_seconds, streams, stream_seconds, ik_steps, stops=stops,
+            stop_robot=stop_robot,
+        )  # fmt: skip
+    show_bench(result, json_out)
+
+
+@bench_app.command("safety")
+@user_errors
+def bench_safety(
+    episodes: int = typer.Option(40, help="Episodes of random twists (6 commands each)."),
+    seed: int = typer.Option(0, help="Seed of the random postures and twists."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """The safety layer's adversarial probe on the simulated arm: joint-margin clearance
+    at 30-148 deg/s, measured speeds over the caps, the box and the margins under random
+    twists (simulated clock: the figures do not depend on the machine's load)."""
+    from wovenskin.bench.safety import run_safety_benchmark
+
+    with err_console.status("probing the safety layer..."):
+        result = run_safety_benchmark(episodes, seed)
+    show_bench(result, json_out)
+
+
+@bench_app.command("dashboard")
+@user_errors
+def bench_dashboard(
+    model: Path = typer.Option(None, help=MODEL_HELP),
+    idle_seconds: float = typer.Option(5.0, help="Seconds of page states counted while idle."),
+    swipes: int = typer.Option(6, help="Swipes sent over the socket (alternately up and down)."),
+    ui_rate: float = typer.Option(40.0, help="Page updates per second asked of the server."),
+    rounds: int = typer.Option(
+        2, help="Rounds of the 14 gestures drawn as on a touch screen (0: none)."
+    ),
+    seed: int = typer.Option(0, help="Seed of the simulated people who draw the gestures."),
+    mouse_rounds: int = typer.Option(
+        2,
+        help="Rounds of the gestures a mouse draws (swipes 40-90 mm at 70-250 mm/s, circles, "
+        "push), each densely and sparsely sampled (0: none).",
+    ),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Dashboard page rate, touch -> command -> motion latency, the 14 gestures drawn as
+    on a touch screen and the gestures drawn with a mouse (dense and sparse pointer
+    samples, success per gesture), all over its WebSocket."""
+
+    from wovenskin.bench.dashboard import run_dashboard_benchmark
+
+    if swipes < 1 or idle_seconds <= 0 or rounds < 0 or mouse_rounds < 0:
+        raise ValueError(
+            "--swipes must be >= 1, --idle-seconds positive, --rounds and --mouse-rounds >= 0"
+        )
+    with err_console.status("benchmarking the dashboard..."):
+        result = run_dashboard_benchmark(
+            model, idle_seconds, swipes, ui_rate, rounds, seed, mouse_rounds=mouse_rounds
+        )
+    show_bench(result, json_out)

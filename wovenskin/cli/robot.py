@@ -1,0 +1,255 @@
+"""Commands that drive a robot: run (terminal or web dashboard) and pose."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import typer
+from rich.markup import escape
+
+from wovenskin.cli.app import (
+    MODEL_HELP,
+    ROBOT_HELP,
+    SKIN_HELP,
+    app,
+    console,
+    err_console,
+    pose_app,
+    robot_errors,
+    user_errors,
+)
+
+
+@app.command()
+@user_errors
+@robot_errors
+def run(
+    skin: str = typer.Option(
+        None, help=SKIN_HELP + " Default: sim:auto=0 with the dashboard, else sim."
+    ),
+    robot: str = typer.Option("sim", help=ROBOT_HELP),
+    model: Path = typer.Option(None, help=MODEL_HELP),
+    view: str = typer.Option("dashboard", help="dashboard (web page), terminal or none."),
+    headless: bool = typer.Option(
+        False, help="No view (same as --view none); replays run as fast as possible."
+    ),
+    host: str = typer.Option("127.0.0.1", help="Dashboard address; not loopback needs a token."),
+    port: int = typer.Option(8000, help="Dashboard port."),
+    token: str = typer.Option(None, help="Dashboard token (made up when --host is not local)."),
+    open_browser: bool = typer.Option(
+        True, "--open/--no-open", help="Open the dashboard in the default web browser."
+    ),
+    ui_rate: float = typer.Option(40.0, help="Dashboard updates per second (30-60)."),
+    trace: str = typer.Option(
+        None, help="Write a JSON line per control tick to this .jsonl file ('-': stdout)."
+    ),
+    record: Path = typer.Option(None, help="Record the session (.wsrec): skin, commands, robot."),
+    seconds: float = typer.Option(None, help="Stop after this many seconds of skin time."),
+    mapping: Path = typer.Option(None, help="Action mapping TOML (default: the packaged one)."),
+    poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
+    overwrite: bool = typer.Option(False, help="Replace existing --trace / --record files."),
+) -> None:
+    """Drive a robot with gestures: skin, recogniser, mapping, safety and robot in one loop.
+
+    With no options: the live dashboard at http://127.0.0.1:8000 on the simulated skin
+    and arm.
+
+    --skin serial:PORT and --robot tm:HOST (or ur:HOST) drive real hardware through the
+    same loop.
+    """
+    from wovenskin.control.session import open_session
+    from wovenskin.control.trace import TraceWriter
+
+    if headless:
+        view = "none"
+    if view not in ("dashboard", "terminal", "none"):
+        raise ValueError(f"--view must be dashboard, terminal or none, got {view!r}")
+    headless = view == "none"
+    if skin is None:
+        skin = "sim:auto=0" if view == "dashboard" else "sim"
+    to_stdout = trace == "-"
+    out = err_console if to_stdout or headless else console
+    if trace == "-" and not headless:
+        raise ValueError("--trace - (stdout) needs --headless")
+    if seconds is not None and not seconds > 0:
+        raise ValueError(f"--seconds must be positive, got {seconds}")
+    if view == "dashboard":
+        _run_dashboard(
+            skin, robot, model, host=host, port=port, token=token, open_browser=open_browser,
+            ui_rate=ui_rate, trace=trace, record=record, seconds=seconds, mapping=mapping,
+            poses=poses, overwrite=overwrite,
+        )  # fmt: skip
+        return
+    writer = TraceWriter(trace, overwrite=overwrite) if trace else None
+
+    def report(message: str) -> None:
+        if headless:
+            err_console.print(escape(message), highlight=False, soft_wrap=True)
+
+    try:
+        session = open_session(
+            skin, robot, model, fast_replay=headless, mapping=mapping, poses=poses,
+            trace=writer, record=record, overwrite=overwrite, on_message=report,
+        )  # fmt: skip
+    except BaseException:
+        if writer is not None:
+            writer.close()
+        raise
+    try:
+        if headless:
+            try:
+                result = session.run(seconds)
+            except KeyboardInterrupt:
+                session.request_quit("interrupted (Ctrl-C)")
+                result = session.result()
+        else:
+            from wovenskin.ui.run_view import run_with_view
+
+            result = run_with_view(session, console, seconds, title=f"wovenskin run  {robot}")
+    finally:
+        session.close()
+    out.print(result.summary(), highlight=False, soft_wrap=True)
+    if writer is not None and writer.path is not None:
+        out.print(f"trace: {writer.lines} lines in {writer.path}", highlight=False)
+    if record is not None:
+        out.print(f"recording: {record}", highlight=False)
+
+
+def _has_desktop() -> bool:
+    """Whether a graphical browser can open: without a desktop, Python's ``webbrowser``
+    would start a text browser (lynx, w3m) in this terminal and take it over."""
+    import os
+
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _run_dashboard(
+    skin: str, robot: str, model: Path | None, *, host: str, port: int, token: str | None,
+    open_browser: bool, ui_rate: float, trace: str | None, record: Path | None,
+    seconds: float | None, mapping: Path | None, poses: Path | None, overwrite: bool,
+) -> None:  # fmt: skip
+    """``wovenskin run`` with the web dashboard (see :mod:`wovenskin.ui.dashboard`)."""
+    import socket
+    import webbrowser
+
+    from wovenskin.control.session import open_session
+    from wovenskin.control.trace import TraceWriter
+    from wovenskin.ui.dashboard.runner import DashboardRunner
+    from wovenskin.ui.dashboard.server import needs_token, new_token, other_device_urls, serve
+
+    if not 30.0 <= ui_rate <= 60.0:
+        raise ValueError(f"--ui-rate must be 30-60 updates per second, got {ui_rate}")
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn does
+        try:
+            probe.bind((host, port))
+        except OSError as exc:
+            why = f"cannot listen on {host}:{port} ({exc.strerror})"
+            raise ValueError(f"{why}: choose another with --port") from None
+    if needs_token(host) and token is None:
+        token = new_token()
+    first = {"record": record, "trace": TraceWriter(trace, overwrite=overwrite) if trace else None}
+
+    def opener(skin_spec: str, robot_spec: str):
+        # The recording and trace given on the command line belong to the first session.
+        recording, writer = first.pop("record", None), first.pop("trace", None)
+        return open_session(
+            skin_spec, robot_spec, model, mapping=mapping, poses=poses, trace=writer,
+            record=recording, overwrite=overwrite,
+        )  # fmt: skip
+
+    runner = DashboardRunner(opener, skin, robot, ui_rate_hz=ui_rate)
+
+    def ready(url: str) -> None:
+        console.print(f"wovenskin dashboard: [bold]{url}[/bold]  (Ctrl-C quits)")
+        for other in other_device_urls(url, host):  # --host 0.0.0.0: a tablet on the network
+            console.print(f"  from another device: [bold]{other}[/bold]", highlight=False)
+        console.print(f"skin {runner.skin_spec}, robot {runner.robot_spec}", highlight=False)
+        if open_browser and _has_desktop():
+            webbrowser.open(url)
+
+    serve(runner, host, port, token if needs_token(host) else token, on_ready=ready,
+          seconds=seconds)  # fmt: skip
+    console.print("dashboard closed; the robot was stopped and disconnected", highlight=False)
+
+
+@pose_app.command("set")
+@user_errors
+@robot_errors
+def pose_set(
+    name: str = typer.Argument(..., help="initial or home."),
+    robot: str = typer.Option("sim", help=ROBOT_HELP),
+    poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
+) -> None:
+    """Store the robot's current pose under NAME (initial: the task's initial pose)."""
+    from wovenskin.control.poses import PoseStore, set_pose_from_robot
+    from wovenskin.robots.registry import make_robot
+
+    store = PoseStore.load(poses)
+    backend = make_robot(robot)
+    backend.connect()
+    try:
+        pose = set_pose_from_robot(store, name, backend)
+    finally:
+        backend.disconnect()
+    console.print(f"stored {name}: {_pose_line(pose.q, pose.tcp)}", highlight=False)
+    console.print(f"in {store.path}", highlight=False)
+
+
+@pose_app.command("show")
+@user_errors
+def pose_show(
+    poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
+) -> None:
+    """Show the stored poses and, where none is stored, the simulated arm's built-in ones."""
+    from wovenskin.control.poses import PoseStore
+
+    store = PoseStore.load(poses)
+    for name in store.names:
+        pose = store.get(name)
+        console.print(f"{name}: {_pose_line(pose.q, pose.tcp)}", highlight=False)
+    if store.names:
+        console.print(f"stored in {store.path}", highlight=False)
+    else:
+        console.print(f"no poses stored in {store.path}", highlight=False)
+    missing = [name for name in ("home", "initial") if name not in store.names]
+    if missing:
+        console.print(
+            "built-in poses of the simulated TM5-900 (--robot sim), used by Go home / Go to "
+            "initial and the 5-finger pinches while none is stored (wovenskin/robots/sim/"
+            "tm5_900.py: HOME_Q, INITIAL_Q; a real arm needs `wovenskin pose set NAME`):",
+            highlight=False,
+        )
+        for name, (q, tcp) in _builtin_poses(missing).items():
+            console.print(f"  {name}: {_pose_line(q, tcp)}", highlight=False)
+
+
+def _builtin_poses(names: list[str]) -> dict:
+    """``{name: (q, tcp Pose)}`` of the simulated TM5-900's built-in home/initial poses."""
+    from scipy.spatial.transform import Rotation
+
+    from wovenskin.robots.base import Pose
+    from wovenskin.robots.sim import tm5_900
+
+    out = {}
+    for name in names:
+        q = tm5_900.HOME_Q if name == "home" else tm5_900.INITIAL_Q
+        transform = tm5_900.forward_kinematics(q)
+        x, y, z, w = Rotation.from_matrix(transform[:3, :3]).as_quat()
+        out[name] = (q, Pose(transform[:3, 3], [w, x, y, z]))
+    return out
+
+
+def _pose_line(q, tcp) -> str:
+    import numpy as np
+
+    joints = ", ".join(f"{v:.1f}" for v in np.degrees(np.asarray(q, dtype=float)))
+    x, y, z = 1000 * np.asarray(tcp.position, dtype=float)
+    w, qx, qy, qz = tcp.quat
+    return (
+        f"joints [{joints}] deg; TCP x {x:.1f} y {y:.1f} z {z:.1f} mm, "
+        f"quat [{w:.4f}, {qx:.4f}, {qy:.4f}, {qz:.4f}]"
+    )

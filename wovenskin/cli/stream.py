@@ -1,0 +1,112 @@
+"""Commands that run the recogniser over a recording: replay and eval-stream."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from wovenskin.cli.app import (
+    MODEL_HELP,
+    app,
+    console,
+    err_console,
+    pipeline_settings,
+    user_errors,
+    warn,
+)
+
+
+@app.command()
+@user_errors
+def replay(
+    stream: Path = typer.Argument(..., help="Labelled-stream .npz (or native .wsrec)."),
+    model: Path = typer.Option(None, help=MODEL_HELP),
+    every: int = typer.Option(1, help="Run the model on every K-th frame's window."),
+    dwell_ms: float = typer.Option(100.0, help="Dwell time before a gesture acts."),
+    min_probability: float = typer.Option(
+        None, help="Least class probability that counts (default: the model's recommendation)."
+    ),
+    threads: int = typer.Option(1, help="ONNX Runtime threads for the model."),
+    json_out: bool = typer.Option(False, "--json", help="Print only the command log (JSON lines)."),
+) -> None:
+    """Run calibration, conditioning, recogniser and arbiter on a stream; print the commands."""
+    from wovenskin.recognition.commandlog import commands_table, format_command_log
+    from wovenskin.recognition.pipeline import load_recognizer, load_stream, run_pipeline
+    from wovenskin.recording.files import unknown_labels, unknown_labels_message
+
+    labelled = load_stream(stream)
+    unknown = unknown_labels(labelled.event_labels)
+    if unknown:  # replay only prints commands; eval-stream refuses to score such a stream
+        warn(unknown_labels_message(str(stream), unknown))
+    recognizer = load_recognizer(model, threads=threads)
+    settings = pipeline_settings(recognizer, every, dwell_ms, min_probability)
+    result = run_pipeline(labelled, recognizer, settings, on_warning=warn)
+    if json_out:
+        print(format_command_log(result.commands), end="", flush=True)
+    else:
+        console.print(commands_table(result.commands))
+    err_console.print(
+        f"{len(result.commands)} command changes, {result.duration_s:.1f} s of stream in "
+        f"{result.elapsed_s:.2f} s ({result.realtime_factor:.0f}x real time, "
+        f"{result.windows_inferred} of {result.windows_predicted} windows classified)",
+        highlight=False,
+    )
+
+
+@app.command("eval-stream")
+@user_errors
+def eval_stream(
+    streams: list[Path] = typer.Argument(..., help="Labelled-stream .npz files with events."),
+    model: Path = typer.Option(None, help=MODEL_HELP),
+    every: int = typer.Option(1, help="Run the model on every K-th frame's window."),
+    dwell_ms: float = typer.Option(100.0, help="Dwell time before a gesture acts."),
+    min_probability: float = typer.Option(
+        None, help="Least class probability that counts (default: the model's recommendation)."
+    ),
+    threads: int = typer.Option(1, help="ONNX Runtime threads for the model."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Score the pipeline's commands against labelled events: event F1, false activations."""
+    import json
+    from dataclasses import asdict
+
+    from wovenskin.recognition.event_scoring import (
+        aggregate,
+        per_class_table,
+        score_stream,
+        scores_table,
+    )
+    from wovenskin.recognition.pipeline import load_recognizer, load_stream, run_pipeline
+    from wovenskin.recording.files import unknown_labels, unknown_labels_message
+
+    for path in streams:  # every file checked before minutes of pipeline are spent
+        unknown = unknown_labels(load_stream(path).event_labels)
+        if unknown:  # no command could match them: scored, they would pass as misses
+            raise ValueError(f"{unknown_labels_message(str(path), unknown)}; not scored")
+    recognizer = load_recognizer(model, threads=threads)
+    settings = pipeline_settings(recognizer, every, dwell_ms, min_probability)
+    rows, details = [], []
+    for path in streams:
+        labelled = load_stream(path)
+        if len(labelled.event_labels) == 0:
+            warn(f"{path} has no labelled events")
+        with err_console.status(f"running the pipeline on {path}..."):
+            result = run_pipeline(labelled, recognizer, settings, on_warning=warn)
+        scores = score_stream(result.commands, labelled)
+        rows.append((path.name, scores))
+        details.append(
+            {"path": str(path), "realtime_factor": result.realtime_factor, **scores.to_dict()}
+        )
+    total = aggregate(s for _, s in rows)
+    if json_out:
+        document = {
+            "model": str(recognizer.checkpoint_dir.resolve()),
+            "settings": {"every": every, **asdict(settings.arbiter)},
+            "streams": details,
+            "total": total.to_dict(),
+        }
+        print(json.dumps(document))
+    else:
+        console.print(scores_table(rows, total))
+        console.print(per_class_table(total))

@@ -1,0 +1,466 @@
+"""Commands that build data sets, train, evaluate and compare models (need PyTorch)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from wovenskin.cli.app import (
+    app,
+    console,
+    err_console,
+    require_torch,
+    user_errors,
+    warn,
+)
+
+SPLIT_HELP = "grouped (recordings, people and skins never seen in training) or random (85/15)."
+
+
+def _json_object(text: str, option: str) -> dict:
+    """Parse an option holding a JSON object ('' gives an empty one)."""
+    import json
+
+    if not text.strip():
+        return {}
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{option} is not valid JSON: {exc.msg} at column {exc.colno}") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"{option} must be a JSON object, e.g. '{{\"n_layers\": 2}}'")
+    return value
+
+
+def _open_or_build_dataset(data: Path | None, ui: Console):
+    """The data set at ``data``, or the default one (generated with a progress bar if missing)."""
+    from wovenskin.training.compare import DEFAULT_DATASET_DIR, dataset_progress, ensure_dataset
+    from wovenskin.training.report import DatasetSummary
+
+    if data is not None or (DEFAULT_DATASET_DIR / "meta.json").is_file():
+        return ensure_dataset(data)[0]
+    ui.print(f"no data set given: building the default one in {DEFAULT_DATASET_DIR} (once)")
+    bar, update = dataset_progress(ui, "simulating recordings")
+    with bar:
+        ds, _ = ensure_dataset(None, progress=update)
+    summary = DatasetSummary.of(ds)
+    ui.print(summary.table(ds.class_names))
+    ui.print(summary.describe(), highlight=False, soft_wrap=True)
+    return ds
+
+
+def _interrupted(out: Path) -> typer.Exit:
+    err_console.print(
+        f"[yellow]interrupted:[/] the last finished epoch is saved in {escape(str(out))}; "
+        "run the same command with --resume to continue",
+        soft_wrap=True,
+        highlight=False,
+    )
+    return typer.Exit(130)
+
+
+@app.command()
+@user_errors
+def dataset(
+    out: Path = typer.Option(..., help="Directory of the window data set to write."),
+    streams: list[Path] = typer.Option(
+        None,
+        help="Labelled streams (.npz) or recordings (.wsrec) to window instead of "
+        "simulating: --streams A.npz B.npz ...",
+    ),
+    more_streams: list[Path] = typer.Argument(None, help="More streams (after --streams)."),
+    recordings: int = typer.Option(140, help="Simulated recordings, each a new person and skin."),
+    windows: int = typer.Option(1000, help="Gesture windows per recording."),
+    invalid_windows: int = typer.Option(400, help="Windows of the invalid class per recording."),
+    seconds: float = typer.Option(120.0, help="Length of each simulated recording."),
+    recipe: str = typer.Option(
+        "stream",
+        help="stream: windows at every position, labelled by what they show; "
+        "overlay: the paper's augmentation (gesture slices on background noise).",
+    ),
+    seed: int = typer.Option(0, help="Random seed: the same seed gives the same files."),
+    workers: int = typer.Option(2, help="Worker processes."),
+    dtype: str = typer.Option("float16", help="Storage of the windows: float16 or float32."),
+    overwrite: bool = typer.Option(False, help="Replace an existing data set."),
+) -> None:
+    """Build a window data set from simulation or labelled streams."""
+    from wovenskin.training.compare import dataset_progress
+    from wovenskin.training.datasets import build_dataset_from_streams, generate_sim_dataset
+    from wovenskin.training.report import DatasetSummary
+    from wovenskin.training.windows import WindowSettings
+
+    settings = WindowSettings(recipe=recipe)
+
+    files = [*(streams or []), *(more_streams or [])]
+    bar, update = dataset_progress(console, "windowing streams" if files else "simulating")
+    with bar:
+        if files:
+            ds = build_dataset_from_streams(
+                out, files, windows, invalid_windows, seed=seed, workers=workers,
+                progress=update, dtype=dtype, overwrite=overwrite, settings=settings,
+            )  # fmt: skip
+        else:
+            ds = generate_sim_dataset(
+                out, recordings, windows, invalid_windows, seconds, seed=seed, workers=workers,
+                progress=update, dtype=dtype, overwrite=overwrite, settings=settings,
+            )  # fmt: skip
+    summary = DatasetSummary.of(ds)
+    console.print(summary.table(ds.class_names))
+    console.print(summary.describe(), highlight=False, soft_wrap=True)
+
+
+@app.command()
+@user_errors
+def train(
+    data: Path = typer.Option(
+        None,
+        help="Window data set directory (default: runs/datasets/sim-default, built if missing).",
+    ),
+    captures: Path = typer.Option(None, help="Train on labelled captures (.npz) instead."),
+    out: Path = typer.Option(None, help="Checkpoint directory (default: runs/models/MODEL-SPLIT)."),
+    model: str = typer.Option(None, help="transformer (default), bilstm or tcn."),
+    split: str = typer.Option("grouped", help=SPLIT_HELP),
+    epochs: int = typer.Option(None, help="Most epochs (default 3); may stop sooner."),
+    batch_size: int = typer.Option(64, help="Windows per training step."),
+    lr: float = typer.Option(3e-3, help="Peak learning rate (AdamW, warm-up, cosine decay)."),
+    seed: int = typer.Option(0, help="Seed of initialisation, batch order and augmentation."),
+    patience: int = typer.Option(5, help="Epochs without a better validation score to stop."),
+    split_seed: int = typer.Option(0, help="Seed of the train/validation split."),
+    hparams: str = typer.Option("", help="Model hyperparameters (JSON): '{\"n_layers\": 2}'."),
+    resume: bool = typer.Option(False, help="Continue an interrupted run in the same --out."),
+    time_budget: float = typer.Option(None, help="Minutes; no epoch starts that would overrun."),
+    threads: int = typer.Option(
+        1, help="Torch threads (one is fastest on a busy 2-core machine: measure)."
+    ),
+    overwrite: bool = typer.Option(False, help="Replace a trained model already in --out."),
+) -> None:
+    """Train a gesture classifier (PyTorch) with early stopping, checkpoints and resume."""
+    require_torch("wovenskin train")
+    from wovenskin.training.compare import (
+        DEFAULT_EPOCHS,
+        RUNS_DIR,
+        TrainOptions,
+        TrainProgressDisplay,
+        default_train_dir,
+        train_on_dataset,
+    )
+
+    if captures is not None:
+        if data is not None:
+            raise ValueError("give --data or --captures, not both")
+        out = out or RUNS_DIR / "models" / f"captures-{captures.stem}"
+        _check_checkpoint_dir(out, overwrite, resume)
+        _train_on_captures(captures, out, model, epochs, seed, threads, resume)
+        return
+    model = model or "transformer"
+    out = out or default_train_dir(model, split)
+    _check_checkpoint_dir(out, overwrite, resume)
+    parameters = _json_object(hparams, "--hparams")
+    ds = _open_or_build_dataset(data, console)
+    options = TrainOptions(
+        epochs=DEFAULT_EPOCHS if epochs is None else epochs, batch_size=batch_size, lr=lr,
+        seed=seed, patience=patience, split_seed=split_seed, resume=resume,
+        time_budget_s=None if time_budget is None else 60 * time_budget, threads=threads,
+    )  # fmt: skip
+    console.print(
+        f"training {model} on {ds.path} ({split} split) into {out}", highlight=False, soft_wrap=True
+    )
+    try:
+        with TrainProgressDisplay(console) as show:
+            result = train_on_dataset(ds, out, model, split, options, parameters, show)
+    except KeyboardInterrupt:
+        raise _interrupted(out) from None
+    v = result.validation
+    resumed = f", resumed at epoch {result.resumed_from_epoch}" if result.resumed_from_epoch else ""
+    console.print(
+        f"best epoch {result.best_epoch} of {result.epochs_run} ({result.stop_reason}{resumed}): "
+        f"validation accuracy {100 * v.accuracy:.2f} %, macro-F1 {v.macro_f1:.4f} on {v.n} "
+        f"windows\ncheckpoint {out} (model.pt, model.onnx, meta.json); full report: "
+        f"wovenskin eval --model {out}",
+        highlight=False,
+        soft_wrap=True,
+    )
+
+
+CHECKPOINT_FILES = ("model.pt", "model.onnx", "meta.json", "training_state.pt")
+
+
+def _check_comparison_dir(out: Path, overwrite: bool, resume: bool) -> None:
+    """Refuse to compare into ``out`` when it holds a comparison or a trained model (in
+    ``out/<split>/<model>/``) unless resuming it or ``overwrite``."""
+    from wovenskin.outputs import OutputExistsError
+    from wovenskin.training.compare import COMPARE_FILE
+
+    if resume or overwrite or not out.is_dir():
+        return
+    found = (out / COMPARE_FILE).exists() or any(
+        (checkpoint / name).exists() for checkpoint in out.glob("*/*") for name in CHECKPOINT_FILES
+    )
+    if found:
+        raise OutputExistsError(out, "a comparison (--resume continues it)")
+
+
+def _check_checkpoint_dir(out: Path, overwrite: bool, resume: bool) -> None:
+    """Refuse to train over a model already in ``out`` unless resuming it or ``overwrite``."""
+    from wovenskin.outputs import OutputExistsError
+
+    if resume or overwrite or not out.is_dir():
+        return
+    if any((out / name).exists() for name in CHECKPOINT_FILES):
+        raise OutputExistsError(out, "a trained model (--resume continues it)")
+
+
+def _train_on_captures(
+    path: Path, out: Path | None, model: str | None, epochs: int | None, seed: int,
+    threads: int, resume: bool,
+) -> None:  # fmt: skip
+    from wovenskin.training.captures import train_on_captures
+    from wovenskin.training.compare import RUNS_DIR, TrainProgressDisplay
+
+    out = out or RUNS_DIR / "models" / f"captures-{path.stem}"
+    console.print(
+        f"training on labelled captures {path} into {out}", highlight=False, soft_wrap=True
+    )
+    try:
+        with TrainProgressDisplay(console) as show:
+            result = train_on_captures(
+                path, out, model=model, epochs=epochs, seed=seed, threads=threads,
+                progress=show, resume=resume,
+            )  # fmt: skip
+    except KeyboardInterrupt:
+        raise _interrupted(out) from None
+    validation = getattr(result, "validation", None)
+    if validation is not None:
+        console.print(
+            f"best epoch {result.best_epoch} ({result.stop_reason}): validation window "
+            f"accuracy {100 * validation.accuracy:.2f} %, macro-F1 {validation.macro_f1:.4f}",
+            highlight=False,
+            soft_wrap=True,
+        )
+    console.print(
+        f"checkpoint {out}; per-capture scores: wovenskin eval --captures FILE --model {out}",
+        highlight=False,
+        soft_wrap=True,
+    )
+
+
+def _print_scalars(document: dict, title: str) -> None:
+    """The top-level numbers and strings of a result document, as a two-column table."""
+    from rich.table import Table
+
+    table = Table(title=title, show_header=False)
+    for key, value in document.items():
+        if isinstance(value, float):
+            table.add_row(key, f"{value:.4f}")
+        elif isinstance(value, int | str) and not isinstance(value, bool):
+            table.add_row(key, str(value))
+    console.print(table)
+
+
+@app.command("eval")
+@user_errors
+def eval_command(
+    model: Path = typer.Option(
+        None, help="Checkpoint directory with model.onnx (default: the shipped model)."
+    ),
+    data: Path = typer.Option(
+        None,
+        help="Window data set (default: the one the model was trained on, else "
+        "runs/datasets/sim-default).",
+    ),
+    split: str = typer.Option(
+        None, help="grouped, random or all (default: the split the model was trained on)."
+    ),
+    split_seed: int = typer.Option(None, help="Seed of the split (default: the training one)."),
+    out: Path = typer.Option(None, help="Report directory (default: MODEL/eval-SPLIT)."),
+    captures: Path = typer.Option(None, help="Score on labelled captures (.npz) instead."),
+    lopo: bool = typer.Option(
+        False, help="With --captures: leave-one-participant-out training and scoring."
+    ),
+    arch: str = typer.Option(None, help="With --lopo: the model to train in every fold."),
+    epochs: int = typer.Option(None, help="With --lopo: most epochs per fold."),
+    threads: int = typer.Option(1, help="ONNX Runtime threads (--lopo: torch threads)."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
+) -> None:
+    """Score a model with ONNX Runtime: accuracy, macro-F1, per-class table, confusion matrix."""
+    import json
+
+    from wovenskin.recognition.shipped import DEFAULT_MODEL_DIR, resolve_model_dir
+
+    if captures is not None:
+        _eval_captures(captures, model, out, lopo, arch, epochs, threads, json_out)
+        return
+    if lopo:
+        raise ValueError("--lopo needs --captures FILE")
+    from rich.progress import Progress
+
+    from wovenskin.training.checkpoint import read_meta
+    from wovenskin.training.compare import DEFAULT_DATASET_DIR, RUNS_DIR
+    from wovenskin.training.report import evaluate_on_dataset, per_class_table, write_report
+
+    model_dir = resolve_model_dir(model)
+    if data is None:
+        trained_on = read_meta(model_dir).training_data.get("dataset") or {}
+        recorded = trained_on.get("path") if isinstance(trained_on, dict) else None
+        if recorded and Path(recorded).is_dir():
+            data = Path(recorded)
+        elif (DEFAULT_DATASET_DIR / "meta.json").is_file():
+            data = DEFAULT_DATASET_DIR
+        else:
+            raise ValueError("no data set to score on: pass --data DIR (see wovenskin dataset)")
+    with Progress(console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
+        task = bar.add_task("classifying windows", total=None)
+        report = evaluate_on_dataset(
+            model_dir, data, split, split_seed, threads,
+            lambda done, total: bar.update(task, completed=done, total=total),
+        )  # fmt: skip
+    if out is None:
+        shipped = model_dir.resolve() == DEFAULT_MODEL_DIR.resolve()
+        base = RUNS_DIR / "eval" / "shipped" if shipped else model_dir
+        out = base / f"eval-{report.split}"
+    files = write_report(report, out)
+    for warning in report.warnings:
+        warn(warning)
+    if json_out:
+        document = {
+            **report.to_dict(),
+            "report_dir": str(out),
+            "files": [str(files.metrics_json), str(files.confusion_json), str(files.confusion_png)],
+        }
+        print(json.dumps(document))
+        return
+    console.print(per_class_table(report.metrics, title=f"{report.model_name} on {data}"))
+    console.print(report.summary(), highlight=False, soft_wrap=True)
+    console.print(f"report: {files.metrics_json}, {files.confusion_json}, {files.confusion_png}")
+
+
+def _eval_captures(
+    path: Path, model: Path | None, out: Path | None, lopo: bool, arch: str | None,
+    epochs: int | None, threads: int, json_out: bool,
+) -> None:  # fmt: skip
+    import json
+
+    from wovenskin.training import captures as captures_module
+
+    if lopo:
+        require_torch("wovenskin eval --lopo")
+        from wovenskin.training.compare import RUNS_DIR, TrainProgressDisplay
+
+        if model is not None:
+            raise ValueError("--lopo trains its own models: name the architecture with --arch")
+        out = out or RUNS_DIR / "lopo" / path.stem
+        options = {k: v for k, v in (("model", arch), ("epochs", epochs)) if v is not None}
+        with TrainProgressDisplay(err_console) as show:
+            result = captures_module.leave_one_participant_out(
+                path, out, threads=threads, progress=show, **options
+            )
+        title = f"leave-one-participant-out on {path}"
+    else:
+        from wovenskin.recognition.shipped import resolve_model_dir
+
+        with err_console.status(f"scoring {path}..."):
+            result = captures_module.evaluate_captures(path, resolve_model_dir(model))
+        title = f"{path} scored by {model or 'the shipped model'}"
+    document = result.to_dict()
+    if json_out:
+        print(json.dumps(document))
+    else:
+        _print_scalars(document, title)
+
+
+@app.command()
+@user_errors
+def compare(
+    data: list[Path] = typer.Option(
+        None,
+        help="Window data set (default: runs/datasets/sim-default, built if missing); give "
+        "--data twice (e.g. a stream-recipe and an overlay-recipe set) to compare recipes.",
+    ),
+    streams: list[Path] = typer.Option(
+        None,
+        help="Labelled streams (.npz) to run each model's whole pipeline on: event F1, "
+        "false activations/min and latency beside the window figures.",
+    ),
+    out: Path = typer.Option(Path("runs/compare"), help="Directory of checkpoints and reports."),
+    models: str = typer.Option("transformer,bilstm,tcn", help="Comma-separated models."),
+    split: str = typer.Option("grouped", help="grouped, random or both: grouped,random."),
+    epochs: int = typer.Option(None, help="Most epochs per model (default 3); may stop sooner."),
+    batch_size: int = typer.Option(64, help="Windows per training step."),
+    lr: float = typer.Option(3e-3, help="Peak learning rate."),
+    seed: int = typer.Option(0, help="Training seed (the same for every model)."),
+    patience: int = typer.Option(5, help="Early-stopping patience in epochs."),
+    split_seed: int = typer.Option(0, help="Seed of the train/validation split."),
+    hparams: str = typer.Option(
+        "", help='Hyperparameters per model, JSON: \'{"bilstm": {"hidden": 64}}\'.'
+    ),
+    resume: bool = typer.Option(False, help="Continue interrupted runs in --out."),
+    overwrite: bool = typer.Option(False, help="Replace a comparison already in --out."),
+    time_budget: float = typer.Option(None, help="Minutes per model and split."),
+    threads: int = typer.Option(
+        1, help="Torch threads for training (one is fastest on a busy 2-core machine)."
+    ),
+    latency_repeats: int = typer.Option(300, help="Timed batch-1 calls per model."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
+) -> None:
+    """Train and score several models on the same data and split: the side-by-side table."""
+    import json
+
+    require_torch("wovenskin compare")
+    from wovenskin.training.compare import (
+        DEFAULT_EPOCHS,
+        TrainOptions,
+        TrainProgressDisplay,
+        compare_models,
+    )
+
+    epochs = DEFAULT_EPOCHS if epochs is None else epochs
+    names = [m.strip() for m in models.split(",") if m.strip()]
+    splits = [s.strip() for s in split.split(",") if s.strip()]
+    parameters = _json_object(hparams, "--hparams")
+    if any(not isinstance(v, dict) for v in parameters.values()):
+        raise ValueError("--hparams must map model names to JSON objects")
+    ui = err_console if json_out else console
+    targets = [out] if len(data or [None]) == 1 else [out / Path(str(d)).name for d in data]
+    for target in targets:  # refused before any data set is built or model trained
+        _check_comparison_dir(target, overwrite, resume)
+    datasets = [_open_or_build_dataset(d, ui) for d in (data or [None])]
+    options = TrainOptions(
+        epochs=epochs, batch_size=batch_size, lr=lr, seed=seed, patience=patience,
+        split_seed=split_seed, resume=resume,
+        time_budget_s=None if time_budget is None else 60 * time_budget, threads=threads,
+    )  # fmt: skip
+
+    def reported(model: str, split_name: str, report) -> None:
+        ui.print(f"{model} / {split_name}: {report.summary()}", highlight=False, soft_wrap=True)
+
+    comparisons = []
+    for ds in datasets:
+        target = out if len(datasets) == 1 else out / Path(str(ds.path)).name
+        try:
+            with TrainProgressDisplay(ui) as show:
+                comparisons.append(
+                    compare_models(
+                        ds,
+                        target,
+                        names,
+                        splits,
+                        options,
+                        parameters,
+                        latency_repeats,
+                        show,
+                        reported,
+                        streams=list(streams or []),
+                    )  # fmt: skip
+                )
+        except KeyboardInterrupt:
+            raise _interrupted(target) from None
+    if json_out:
+        documents = [c.to_dict() for c in comparisons]
+        print(json.dumps(documents[0] if len(documents) == 1 else {"comparisons": documents}))
+    else:
+        for comparison in comparisons:
+            console.print(comparison.table())
+        console.print(f"written: compare.json in {out} (per data set) and an eval report per model")

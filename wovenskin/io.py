@@ -1,0 +1,88 @@
+"""File writing that never leaves a torn file, and numpy values made JSON-ready.
+
+Every writer in wovenskin goes through these helpers: :func:`atomic_write_bytes` and
+:func:`atomic_write_text` write beside the target and rename over it (a crash leaves the
+old file or the new one, never half of one); :func:`to_jsonable` turns numpy scalars and
+arrays, paths and tuples into plain JSON values; :func:`dumps` is ``json.dumps`` with it.
+Whether an existing output may be replaced at all is :mod:`wovenskin.outputs`' rule.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+
+@contextmanager
+def atomic_writer(path: str | os.PathLike, *, binary: bool = True):
+    """Open a temporary file beside ``path``; on a clean exit it replaces ``path``.
+
+    On an exception the temporary file is removed and ``path`` is left as it was.
+    """
+    target = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".partial")
+    try:
+        text_options = {} if binary else {"encoding": "utf-8"}
+        with os.fdopen(fd, "wb" if binary else "w", **text_options) as f:
+            yield f
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename (no torn files)."""
+    with atomic_writer(path) as f:
+        f.write(data)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write UTF-8 ``text`` to ``path`` through a temporary file and a rename."""
+    with atomic_writer(path, binary=False) as f:
+        f.write(text)
+
+
+def atomic_write_with(path: str | os.PathLike, write: Callable[[IO[bytes]], Any]) -> None:
+    """Call ``write(file)`` on a temporary binary file that then replaces ``path``
+    (e.g. ``lambda f: np.savez_compressed(f, **arrays)``)."""
+    with atomic_writer(path) as f:
+        write(f)
+
+
+def to_jsonable(value: Any) -> Any:
+    """``value`` with numpy scalars and arrays, tuples, paths and dataclasses made into
+    plain JSON values (recursively through dicts and lists).  Anything else is returned
+    as it is, for ``json`` to accept or refuse."""
+    if isinstance(value, dict):
+        return {str(k) if not isinstance(k, str) else k: to_jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [to_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return to_jsonable(dataclasses.asdict(value))
+    return value
+
+
+def dumps(value: Any, **kwargs: Any) -> str:
+    """``json.dumps`` of :func:`to_jsonable` ``(value)``; non-finite floats are refused."""
+    kwargs.setdefault("allow_nan", False)
+    return json.dumps(to_jsonable(value), **kwargs)
+
+
+def write_json(path: str | os.PathLike, value: Any, *, indent: int | None = 2) -> None:
+    """Write ``value`` as JSON (with a final newline) to ``path`` atomically."""
+    atomic_write_text(path, dumps(value, indent=indent) + "\n")
