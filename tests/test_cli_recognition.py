@@ -14,12 +14,12 @@ from typer.testing import CliRunner
 
 from wovenskin.bench import model as bench_model
 from wovenskin.cli import app
+from wovenskin.recording.formats import write_labelled_stream
+from wovenskin.sim.stream import simulate_stream
 from wovenskin.training import captures as captures_module
 from wovenskin.training import compare as compare_module
 from wovenskin.training.checkpoint import read_meta
 from wovenskin.training.datasets import generate_sim_dataset, open_dataset
-from wovenskin.recording.formats import write_labelled_stream
-from wovenskin.sim.stream import simulate_stream
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 

@@ -17,18 +17,19 @@ from stand_ins import ContactMeans
 
 from wovenskin.control.mapping import ActionMapping, PoseAction
 from wovenskin.control.poses import PoseStore
-from wovenskin.control.session import ControlSession, SessionSettings, open_session
+from wovenskin.control.session import ControlSession, SessionSettings
 from wovenskin.control.trace import TRACE_KEYS, TraceWriter
 from wovenskin.gestures import CLASS_NAMES
-from wovenskin.live import LiveSkin
 from wovenskin.recognition.pipeline import LivePipeline
 from wovenskin.recording.formats import LabelledStream, write_labelled_stream
 from wovenskin.recording.native import read_recording
 from wovenskin.robots.base import Pose, RobotError
 from wovenskin.robots.sim import SimRobot
 from wovenskin.robots.sim.tm5_900 import INITIAL_Q, forward_kinematics
+from wovenskin.runtime.session import open_session
+from wovenskin.runtime.sources import open_source
+from wovenskin.signal.live_skin import LiveSkin
 from wovenskin.sim.stream import simulate_stream
-from wovenskin.skin.source import open_source
 
 
 def pose_of(q: np.ndarray) -> Pose:

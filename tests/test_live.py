@@ -2,12 +2,12 @@
 
 import numpy as np
 
-from wovenskin.live import LiveSkin, RateMeter
 from wovenskin.recording.formats import LabelledStream, write_labelled_stream
 from wovenskin.recording.native import RecordingWriter, read_recording
+from wovenskin.runtime.sources import open_source
 from wovenskin.signal.conditioner import condition_recording
 from wovenskin.signal.config import ConditioningConfig
-from wovenskin.skin.source import open_source
+from wovenskin.signal.live_skin import LiveSkin, RateMeter
 
 
 def _stream(tmp_path, seconds=3.0, rate=200.0, press=(1.5, 2.2)):

@@ -13,6 +13,7 @@ import pytest
 import torch
 
 from wovenskin.recognition import onnx_runtime
+from wovenskin.recognition.onnx_runtime import OnnxRecognizer, export_onnx, softmax
 from wovenskin.training.checkpoint import (
     ONNX_FILE,
     CheckpointError,
@@ -20,7 +21,6 @@ from wovenskin.training.checkpoint import (
     save_checkpoint,
 )
 from wovenskin.training.models import MODEL_REGISTRY, build_model
-from wovenskin.recognition.onnx_runtime import OnnxRecognizer, export_onnx, softmax
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 

@@ -10,11 +10,8 @@ import pytest
 import torch
 
 from wovenskin.gestures import CLASS_NAMES, INVALID
-from wovenskin.live import LiveBlock, LiveSkin
 from wovenskin.recognition.arbiter import DWELL, LIFT_OFF
-from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
 from wovenskin.recognition.event_scoring import score_stream
-from wovenskin.training.models import build_model
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.recognition.pipeline import (
     RESET,
@@ -26,9 +23,12 @@ from wovenskin.recognition.pipeline import (
 )
 from wovenskin.recording.formats import LabelledStream, write_labelled_stream
 from wovenskin.recording.inspect import convert_file
+from wovenskin.runtime.sources import open_source
 from wovenskin.signal import ConditioningConfig
+from wovenskin.signal.live_skin import LiveBlock, LiveSkin
 from wovenskin.sim.stream import simulate_stream
-from wovenskin.skin.source import open_source
+from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.training.models import build_model
 
 
 def make_model(directory: Path, conditioning: dict | None = None) -> Path:

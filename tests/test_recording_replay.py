@@ -11,8 +11,9 @@ import pytest
 from wovenskin.recording.formats import FormatError, LabelledStream, write_labelled_stream
 from wovenskin.recording.native import RecordingWriter
 from wovenskin.recording.replay import FAST_BATCH, ReplaySource
+from wovenskin.runtime.sources import open_source
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent
-from wovenskin.skin.source import SkinSource, open_source
+from wovenskin.skin.source import SkinSource
 
 RATE = 200.0
 

@@ -13,12 +13,13 @@ from collections.abc import Callable, Iterator
 import numpy as np
 import pytest
 
-from wovenskin.skin.fake_device import FakeSkinDevice
+from wovenskin.runtime.sources import open_source
+from wovenskin.sim.fake_device import FakeSkinDevice
 from wovenskin.skin.frames import Frame, SourceEvent
 from wovenskin.skin.layout import ChannelOrder, SkinLayout
 from wovenskin.skin.protocol import CommandId, SampleDtype
 from wovenskin.skin.serial_source import SerialSkinSource
-from wovenskin.skin.source import SkinSource, open_source
+from wovenskin.skin.source import SkinSource
 
 WAIT_S = 5.0
 

@@ -10,9 +10,10 @@ import time
 import numpy as np
 import pytest
 
+from wovenskin.runtime.sources import open_source
 from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.frames import Frame, SourceEvent
-from wovenskin.skin.source import SkinSource, open_source
+from wovenskin.skin.source import SkinSource
 
 FS = 200.0
 

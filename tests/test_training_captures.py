@@ -12,6 +12,11 @@ import numpy as np
 import pytest
 
 from tests.conftest import SHARED
+from wovenskin.recording.formats import (
+    LabelledCaptures,
+    read_labelled_captures,
+    write_labelled_captures,
+)
 from wovenskin.training.captures import (
     CaptureRecipe,
     CaptureWindowArray,
@@ -29,11 +34,6 @@ from wovenskin.training.captures import (
 from wovenskin.training.checkpoint import read_meta
 from wovenskin.training.datasets import CaptureNormalisation
 from wovenskin.training.windows import capture_windows
-from wovenskin.recording.formats import (
-    LabelledCaptures,
-    read_labelled_captures,
-    write_labelled_captures,
-)
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 

@@ -10,6 +10,7 @@ import torch
 
 import wovenskin
 from wovenskin.gestures import CLASS_NAMES
+from wovenskin.signal.config import ConditioningConfig
 from wovenskin.training.checkpoint import (
     META_FILE,
     ONNX_FILE,
@@ -22,7 +23,6 @@ from wovenskin.training.checkpoint import (
     save_checkpoint,
 )
 from wovenskin.training.models import build_model, resolve_hparams
-from wovenskin.signal.config import ConditioningConfig
 
 
 def make_meta(**changes) -> CheckpointMeta:

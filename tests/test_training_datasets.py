@@ -13,6 +13,16 @@ import pytest
 from tests.conftest import SHARED
 from wovenskin.gestures import CLASS_NAMES, INVALID
 from wovenskin.outputs import OutputExistsError
+from wovenskin.recording.formats import (
+    LabelledCaptures,
+    read_labelled_stream,
+    write_labelled_captures,
+    write_labelled_stream,
+)
+from wovenskin.recording.native import recording_from_labelled_stream, write_recording
+from wovenskin.sim.person import Person
+from wovenskin.sim.physics import SkinPhysics
+from wovenskin.sim.stream import simulate_stream
 from wovenskin.training.datasets import (
     GROUP_KEYS,
     CaptureNormalisation,
@@ -32,16 +42,6 @@ from wovenskin.training.datasets import (
     stream_identity,
 )
 from wovenskin.training.windows import SOURCE_CODES, SOURCE_NAMES
-from wovenskin.recording.formats import (
-    LabelledCaptures,
-    read_labelled_stream,
-    write_labelled_captures,
-    write_labelled_stream,
-)
-from wovenskin.recording.native import recording_from_labelled_stream, write_recording
-from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinPhysics
-from wovenskin.sim.stream import simulate_stream
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from rich.console import Console
 
+from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.training.checkpoint import read_meta, write_meta
 from wovenskin.training.compare import TrainOptions, train_on_dataset
 from wovenskin.training.datasets import (
@@ -20,7 +21,6 @@ from wovenskin.training.datasets import (
     random_split,
 )
 from wovenskin.training.metrics import classification_metrics
-from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.training.report import (
     CONFUSION_JSON,
     CONFUSION_PNG,

@@ -11,6 +11,7 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.training import train as train_module
 from wovenskin.training.checkpoint import (
     META_FILE,
@@ -20,7 +21,6 @@ from wovenskin.training.checkpoint import (
     read_meta,
 )
 from wovenskin.training.models import build_model
-from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.training.train import (
     CURVE_FILE,
     HISTORY_FILE,

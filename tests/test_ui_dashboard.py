@@ -11,10 +11,10 @@ from fastapi.testclient import TestClient
 from stand_ins import ContactMeans
 from starlette.websockets import WebSocketDisconnect
 
-from wovenskin.control.session import open_session
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.robots.sim import SimRobot
 from wovenskin.robots.sim.tm5_900 import INITIAL_Q
+from wovenskin.runtime.session import open_session
 from wovenskin.sim.live import Fingertip
 from wovenskin.skin.layout import SkinLayout
 from wovenskin.ui.dashboard.runner import DashboardRunner
@@ -337,7 +337,7 @@ def test_a_token_guards_every_request_and_the_socket(runner) -> None:
 
 
 def test_a_serial_skin_drives_the_page_and_a_pulled_cable_stops_the_arm(tmp_path) -> None:
-    from wovenskin.skin.fake_device import FakeSkinDevice
+    from wovenskin.sim.fake_device import FakeSkinDevice
 
     device = FakeSkinDevice().start()
     runner = DashboardRunner(_opener(tmp_path), f"serial:{device.port}", "sim")

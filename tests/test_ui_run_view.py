@@ -7,8 +7,8 @@ import io
 from rich.console import Console
 from stand_ins import ContactMeans
 
-from wovenskin.control.session import open_session
 from wovenskin.recording.formats import write_labelled_stream
+from wovenskin.runtime.session import open_session
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.ui.run_view import handle_keys, render_run, run_with_view, terminal_keys
 

@@ -41,8 +41,9 @@ from rich.table import Table
 from wovenskin.control.mapping import ActionMapping, MotionSettings, TwistAction
 from wovenskin.control.motion import TwistShaper
 from wovenskin.control.safety import SafetyLayer, SafetyLimits
-from wovenskin.control.session import ControlSession, open_session
+from wovenskin.control.session import ControlSession
 from wovenskin.robots.base import Robot
+from wovenskin.runtime.session import open_session
 
 LATENCY_TARGET_S = 0.2
 MOTION_LINEAR_M_S = 1e-4  # 0.1 mm/s: the arm has started to move

@@ -40,8 +40,8 @@ from pathlib import Path
 import numpy as np
 from rich.table import Table
 
-from wovenskin.control.session import open_session
 from wovenskin.gestures import GESTURE_NAMES
+from wovenskin.runtime.session import open_session
 from wovenskin.sim.motion import minimum_jerk
 from wovenskin.sim.performances import perform
 from wovenskin.sim.person import Person

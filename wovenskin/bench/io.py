@@ -26,12 +26,12 @@ from datetime import UTC, datetime
 import numpy as np
 from rich.table import Table
 
-from wovenskin.training.timing import one_core
 from wovenskin.signal.calibration import calibrate
 from wovenskin.signal.conditioner import Conditioner
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.skin.layout import ROW_MAJOR, SkinLayout
 from wovenskin.skin.protocol import FrameMessage, StreamDecoder, encode_message
+from wovenskin.training.timing import one_core
 
 CHUNK_BYTES = 4096
 LIVE_BLOCK_FRAMES = 4  # frames that arrive between two 20 ms polls at 200 Hz

@@ -180,10 +180,10 @@ def _fresh_candidates(directory: Path, names: list[str]) -> list[_Candidate]:
     import torch
 
     from wovenskin.gestures import CLASS_NAMES
-    from wovenskin.training.checkpoint import CheckpointMeta, write_meta
-    from wovenskin.training.models import build_model, resolve_hparams
     from wovenskin.recognition.onnx_runtime import export_onnx
     from wovenskin.signal.config import ConditioningConfig
+    from wovenskin.training.checkpoint import CheckpointMeta, write_meta
+    from wovenskin.training.models import build_model, resolve_hparams
 
     candidates = []
     for name in names:
@@ -210,9 +210,9 @@ def _shipped_candidate() -> _Candidate | None:
     """The shipped default model, when the package holds one (its torch twin from its meta)."""
     import torch
 
+    from wovenskin.recognition.shipped import ModelNotFoundError, default_model_dir
     from wovenskin.training.checkpoint import WEIGHTS_FILE, load_checkpoint, read_meta
     from wovenskin.training.models import build_model
-    from wovenskin.recognition.shipped import ModelNotFoundError, default_model_dir
 
     try:
         directory = default_model_dir()
@@ -240,8 +240,8 @@ def run_model_benchmark(
     import onnxruntime
     import torch
 
-    from wovenskin.training.models import MODEL_REGISTRY, count_parameters
     from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+    from wovenskin.training.models import MODEL_REGISTRY, count_parameters
 
     if batch_size < 1:
         raise ValueError(f"batch size must be at least 1, got {batch_size}")

@@ -1,6 +1,6 @@
 """``wovenskin bench serial``: the serial reader end to end over a real pseudo-terminal.
 
-A :class:`~wovenskin.skin.fake_device.FakeSkinDevice` streams the binary protocol at
+A :class:`~wovenskin.sim.fake_device.FakeSkinDevice` streams the binary protocol at
 200 Hz into a pty; a :class:`~wovenskin.skin.serial_source.SerialSkinSource` reads it.
 The device stalls a number of times; the benchmark measures how long after the last
 frame before each stall the consumer received the ``stalled`` event (target: within
@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from rich.table import Table
 
-from wovenskin.skin.fake_device import FakeSkinDevice
+from wovenskin.sim.fake_device import FakeSkinDevice
 from wovenskin.skin.frames import Frame, SourceEvent
 from wovenskin.skin.serial_source import SerialSkinSource
 

@@ -13,12 +13,12 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from rich.table import Table
 
-from wovenskin.training.timing import one_core
 from wovenskin.sim.performances import perform
 from wovenskin.sim.person import Person
 from wovenskin.sim.physics import SkinModel, SkinPhysics
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.skin.layout import SkinLayout
+from wovenskin.training.timing import one_core
 
 FAMILIES = {
     "one finger (swipe_up)": ("swipe_up", None),

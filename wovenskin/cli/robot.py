@@ -58,8 +58,8 @@ def run(
     --skin serial:PORT and --robot tm:HOST (or ur:HOST) drive real hardware through the
     same loop.
     """
-    from wovenskin.control.session import open_session
     from wovenskin.control.trace import TraceWriter
+    from wovenskin.runtime.session import open_session
 
     if headless:
         view = "none"
@@ -135,8 +135,8 @@ def _run_dashboard(
     import socket
     import webbrowser
 
-    from wovenskin.control.session import open_session
     from wovenskin.control.trace import TraceWriter
+    from wovenskin.runtime.session import open_session
     from wovenskin.ui.dashboard.runner import DashboardRunner
     from wovenskin.ui.dashboard.server import needs_token, new_token, other_device_urls, serve
 

@@ -211,6 +211,6 @@ def fake_device(
     seed: int = typer.Option(0, help="Seed of the simulated person."),
 ) -> None:
     """Run a simulated skin device on a pseudo-terminal, to test a setup without hardware."""
-    from wovenskin.skin.fake_device import run_fake_device
+    from wovenskin.sim.fake_device import run_fake_device
 
     run_fake_device(seconds=seconds, fmt=fmt, seed=seed, console=console)

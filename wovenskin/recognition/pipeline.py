@@ -50,8 +50,8 @@ from wovenskin.signal.conditioner import LiveConditioner
 from wovenskin.signal.config import ConditioningConfig
 
 if TYPE_CHECKING:
-    from wovenskin.live import LiveBlock
     from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+    from wovenskin.signal.live_skin import LiveBlock
 
 RESET = "reset"
 """Reason of the change that ends an active command when the pipeline is reset."""
@@ -181,7 +181,7 @@ class LivePipeline:
     def for_live_skin(
         cls, live_skin: Any, recognizer: Recognizer, settings: PipelineSettings | None = None
     ) -> LivePipeline:
-        """A pipeline for a :class:`~wovenskin.live.LiveSkin` (its grid, rate, conditioning).
+        """A pipeline for a live skin (:class:`~wovenskin.signal.live_skin.LiveSkin`).
 
         Create the ``LiveSkin`` with ``config=conditioning_for_model(recognizer)``: the
         model refuses frames conditioned otherwise.
@@ -214,7 +214,7 @@ class LivePipeline:
         return self.class_names[k], float(p[k])
 
     def feed(self, block: LiveBlock) -> list[CommandChange]:
-        """One block from :meth:`wovenskin.live.LiveSkin.step`; returns the changes it caused.
+        """One block from :meth:`~wovenskin.signal.live_skin.LiveSkin.step`; returns its changes.
 
         A block whose conditioner frame index does not follow the previous block's (the
         skin was recalibrated: a new conditioner started) first resets the pipeline, so

@@ -6,7 +6,7 @@ through here and comes out as ``[row, col]`` frames on a stream clock.
 
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 from wovenskin.skin.layout import ChannelOrder, SkinLayout
-from wovenskin.skin.source import SkinSource, open_source
+from wovenskin.skin.source import SkinSource
 
 __all__ = [
     "ChannelOrder",
@@ -16,5 +16,4 @@ __all__ = [
     "SkinSource",
     "SourceEvent",
     "SourceStats",
-    "open_source",
 ]

@@ -51,11 +51,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from wovenskin.recording.formats import LabelledCaptures
 from wovenskin.training.checkpoint import CheckpointMeta, atomic_write_bytes
 from wovenskin.training.datasets import CaptureNormalisation
 from wovenskin.training.metrics import ClassificationMetrics, classification_metrics
 from wovenskin.training.windows import capture_window_ends, capture_windows
-from wovenskin.recording.formats import LabelledCaptures
 
 if TYPE_CHECKING:
     from wovenskin.recognition.onnx_runtime import OnnxRecognizer

@@ -337,9 +337,9 @@ def compare_models(
     also runs the whole live pipeline on them (:func:`score_on_streams`): event F1, false
     activations per minute and latency, the figures that matter to a user.
     """
+    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
     from wovenskin.training.checkpoint import load_checkpoint
     from wovenskin.training.models import MODEL_REGISTRY, count_parameters
-    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
     from wovenskin.training.timing import measure_latency, one_core
 
     models = list(models or MODEL_REGISTRY)

@@ -61,6 +61,17 @@ from scipy.sparse.csgraph import connected_components
 from wovenskin import __version__
 from wovenskin.gestures import CLASS_NAMES, INVALID
 from wovenskin.outputs import OutputExistsError
+from wovenskin.recording.files import read_captures, read_stream
+from wovenskin.recording.formats import (
+    LabelledCaptures,
+    LabelledStream,
+)
+from wovenskin.signal.conditioner import condition_recording
+from wovenskin.signal.config import ConditioningConfig
+from wovenskin.sim.person import Person
+from wovenskin.sim.physics import SkinPhysics
+from wovenskin.sim.stream import simulate_stream
+from wovenskin.skin.layout import SkinLayout
 from wovenskin.training.stream_windows import characteristic_spans, sample_stream_windows
 from wovenskin.training.windows import (
     SOURCE_CODES,
@@ -73,17 +84,6 @@ from wovenskin.training.windows import (
     events_to_frames,
     sample_windows,
 )
-from wovenskin.recording.files import read_captures, read_stream
-from wovenskin.recording.formats import (
-    LabelledCaptures,
-    LabelledStream,
-)
-from wovenskin.signal.conditioner import condition_recording
-from wovenskin.signal.config import ConditioningConfig
-from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinPhysics
-from wovenskin.sim.stream import simulate_stream
-from wovenskin.skin.layout import SkinLayout
 
 FORMAT = "wovenskin.window-dataset"
 FORMAT_VERSION = 1

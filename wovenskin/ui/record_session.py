@@ -29,11 +29,11 @@ from rich.text import Text
 
 from wovenskin import __version__
 from wovenskin.gestures import INVALID
-from wovenskin.live import LiveSkin
 from wovenskin.recording.native import RecordingWriter
+from wovenskin.runtime.sources import open_source
 from wovenskin.signal.config import ConditioningConfig
+from wovenskin.signal.live_skin import LiveSkin
 from wovenskin.sim.live import SimulatedSkinSource
-from wovenskin.skin.source import open_source
 from wovenskin.ui.terminal import heatmap, live_screen
 
 INVALID_PROMPT = "touch WITHOUT a gesture: tap, palm, grasp the link, brush past, 3-4 fingers"

@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 from rich.console import Console
 
-from wovenskin.live import LiveSkin, RateMeter
+from wovenskin.runtime.sources import open_source
 from wovenskin.signal.config import ConditioningConfig
-from wovenskin.skin.source import open_source
+from wovenskin.signal.live_skin import LiveSkin, RateMeter
 from wovenskin.ui.terminal import heatmap, live_screen, skin_panel, status_table
 
 

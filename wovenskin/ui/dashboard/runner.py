@@ -25,8 +25,8 @@ from typing import Any
 
 from wovenskin.control.session import ControlSession
 from wovenskin.gestures import CLASS_NAMES
-from wovenskin.live import RateMeter
-from wovenskin.skin.source import parse_spec
+from wovenskin.runtime.sources import parse_spec
+from wovenskin.signal.live_skin import RateMeter
 from wovenskin.ui.dashboard.scene import ArmScene
 from wovenskin.ui.dashboard.snapshot import Timeline, TimelineEntry, build_snapshot
 

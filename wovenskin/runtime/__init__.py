@@ -1,0 +1,8 @@
+"""The composition root: the only package that opens sources, robots, recognisers and
+sessions from their specs and wires the pipeline's stages together.  Every other package
+imports only the stages below it."""
+
+from wovenskin.runtime.session import open_session
+from wovenskin.runtime.sources import open_source, parse_spec
+
+__all__ = ["open_session", "open_source", "parse_spec"]
