@@ -122,3 +122,56 @@ def test_find_cycle_reports_the_circle():
 def test_no_import_circles():
     cycle = find_cycle(import_graph())
     assert cycle is None, "import circle: " + " -> ".join(cycle or [])
+
+
+# The pipeline's layers, bottom first.  A module may import modules of its own package and
+# of packages in lower layers, never of a package in its own or a higher layer.
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("wovenskin",),  # the top-level modules: errors, io, settings, specs, outputs, gestures
+    ("skin",),
+    ("recording", "signal"),
+    ("sim", "recognition"),
+    ("robots",),
+    ("control", "training"),
+    ("runtime",),
+    ("ui",),
+    ("bench",),  # benchmarks measure every stage, the dashboard too
+    ("cli",),
+)
+LAYER_OF = {package: level for level, packages in enumerate(LAYERS) for package in packages}
+
+
+def _package(module: str) -> str:
+    """The package directly under ``wovenskin`` that holds ``module``; ``wovenskin`` for the
+    top-level modules."""
+    parts = module.split(".")
+    is_package = len(parts) > 1 and (PACKAGE_ROOT / parts[1]).is_dir()
+    return parts[1] if is_package else "wovenskin"
+
+
+def upward_imports(graph: dict[str, set[str]]) -> list[str]:
+    """Each import of a module in a same or higher layer's other package, as ``a -> b``."""
+    found = []
+    for module, targets in sorted(graph.items()):
+        mine = _package(module)
+        for target in sorted(targets):
+            theirs = _package(target)
+            if theirs != mine and LAYER_OF[theirs] >= LAYER_OF[mine]:
+                found.append(f"{module} -> {target}")
+    return found
+
+
+def test_every_package_has_a_layer():
+    assert {_package(m) for m in import_graph()} <= set(LAYER_OF)
+
+
+def test_upward_imports_are_found():
+    graph = {"wovenskin.skin.a": {"wovenskin.sim.b"}, "wovenskin.sim.b": {"wovenskin.skin.a"}}
+    assert upward_imports(graph) == ["wovenskin.skin.a -> wovenskin.sim.b"]
+    graph = {"wovenskin.sim.b": {"wovenskin.recognition.c"}}  # the same layer: not allowed
+    assert upward_imports(graph) == ["wovenskin.sim.b -> wovenskin.recognition.c"]
+
+
+def test_every_stage_imports_only_stages_below_it():
+    upward = upward_imports(import_graph())
+    assert not upward, "upward imports:\n" + "\n".join(upward)
