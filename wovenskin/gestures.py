@@ -1,37 +1,42 @@
 """The gesture vocabulary of ``docs/gestures.md``: names are the stable identifiers.
 
-Files, checkpoints and command logs carry these names, never bare class indices.
+Files, checkpoints and command logs carry these names, never bare class indices.  What
+each gesture makes the robot do is the mapping file's business
+(``wovenskin/control/default_mapping.toml``), not the vocabulary's.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from wovenskin.errors import ConfigError
+
 INVALID = "invalid"
 
 
 @dataclass(frozen=True)
 class GestureSpec:
+    """A gesture: its stable name and how many fingers perform it."""
+
     name: str
     fingers: int
-    action: str
 
 
 GESTURES: tuple[GestureSpec, ...] = (
-    GestureSpec("swipe_up", 1, "translate +z"),
-    GestureSpec("swipe_down", 1, "translate -z"),
-    GestureSpec("swipe_right", 1, "translate +y"),
-    GestureSpec("swipe_left", 1, "translate -y"),
-    GestureSpec("pinch_in_2f", 2, "translate +x"),
-    GestureSpec("push", 1, "translate -x"),
-    GestureSpec("swipe_up_2f", 2, "rotate +y"),
-    GestureSpec("swipe_down_2f", 2, "rotate -y"),
-    GestureSpec("swipe_right_2f", 2, "rotate +z"),
-    GestureSpec("swipe_left_2f", 2, "rotate -z"),
-    GestureSpec("circle_cw_2f", 2, "rotate +x"),
-    GestureSpec("circle_ccw_2f", 2, "rotate -x"),
-    GestureSpec("pinch_in_5f", 5, "go to initial pose"),
-    GestureSpec("pinch_out_5f", 5, "go to home posture"),
+    GestureSpec("swipe_up", 1),
+    GestureSpec("swipe_down", 1),
+    GestureSpec("swipe_right", 1),
+    GestureSpec("swipe_left", 1),
+    GestureSpec("pinch_in_2f", 2),
+    GestureSpec("push", 1),
+    GestureSpec("swipe_up_2f", 2),
+    GestureSpec("swipe_down_2f", 2),
+    GestureSpec("swipe_right_2f", 2),
+    GestureSpec("swipe_left_2f", 2),
+    GestureSpec("circle_cw_2f", 2),
+    GestureSpec("circle_ccw_2f", 2),
+    GestureSpec("pinch_in_5f", 5),
+    GestureSpec("pinch_out_5f", 5),
 )
 
 GESTURE_NAMES: tuple[str, ...] = tuple(g.name for g in GESTURES)
@@ -42,7 +47,8 @@ CLASS_NAMES: tuple[str, ...] = (*GESTURE_NAMES, INVALID)
 
 
 def check_name(name: str) -> str:
-    """Return ``name`` if it is one of :data:`CLASS_NAMES`, else raise ``ValueError``."""
+    """Return ``name`` if it is one of :data:`CLASS_NAMES`, else raise :class:`ConfigError`
+    (a ``ValueError``)."""
     if name not in CLASS_NAMES:
-        raise ValueError(f"unknown gesture {name!r}; known: {', '.join(CLASS_NAMES)}")
+        raise ConfigError(f"unknown gesture {name!r}; known: {', '.join(CLASS_NAMES)}")
     return name
