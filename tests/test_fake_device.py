@@ -15,7 +15,7 @@ import pytest
 from wovenskin.sim.fake_device import FakeSkinDevice, run_fake_device
 from wovenskin.skin.frames import Frame
 from wovenskin.skin.layout import ChannelOrder, SkinLayout
-from wovenskin.skin.protocol import (
+from wovenskin.skin.messages import (
     AckMessage,
     AckStatus,
     CommandId,
@@ -23,9 +23,8 @@ from wovenskin.skin.protocol import (
     FrameMessage,
     InfoMessage,
     SampleDtype,
-    StreamDecoder,
-    encode_message,
 )
+from wovenskin.skin.protocol import StreamDecoder, encode_message
 from wovenskin.skin.serial_source import SerialSkinSource
 from wovenskin.skin.textlines import TextLineDecoder
 

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from wovenskin.skin.layout import ChannelOrder
-from wovenskin.skin.protocol import (
+from wovenskin.skin.messages import (
     AckMessage,
     AckStatus,
     CommandId,
@@ -24,15 +24,17 @@ from wovenskin.skin.protocol import (
     MessageType,
     ProtocolError,
     SampleDtype,
+    dequantize,
+    flags_to_order,
+    order_to_flags,
+    quantize,
+)
+from wovenskin.skin.protocol import (
     StreamDecoder,
     cobs_frame,
     decode_packet,
-    dequantize,
     encode_message,
-    flags_to_order,
-    order_to_flags,
     pack_message,
-    quantize,
     unpack_message,
 )
 

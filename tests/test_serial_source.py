@@ -17,7 +17,7 @@ from wovenskin.runtime.sources import open_source
 from wovenskin.sim.fake_device import FakeSkinDevice
 from wovenskin.skin.frames import Frame, SourceEvent
 from wovenskin.skin.layout import ChannelOrder, SkinLayout
-from wovenskin.skin.protocol import CommandId, SampleDtype
+from wovenskin.skin.messages import CommandId, SampleDtype
 from wovenskin.skin.serial_source import SerialSkinSource
 from wovenskin.skin.source import SkinSource
 
@@ -261,8 +261,8 @@ def test_opening_a_missing_port_fails_clearly_and_close_is_idempotent(tmp_path):
     ("spec", "message"),
     [
         ("serial:/dev/x?format=morse", "format"),
-        ("serial:/dev/x?rows=ten", "rows must be an integer"),
-        ("serial:/dev/x?colour=red", "unknown serial option"),
+        ("serial:/dev/x?rows=ten", "rows: Input should be a valid integer"),
+        ("serial:/dev/x?colour=red", "serial options: unknown setting 'colour'"),
         ("serial:/dev/x?order=col-major", "INFO"),
         ("serial:/dev/x?format=text&order=diagonal", "channel order"),
         ("serial:/dev/x?stall_ms=0", "stall_ms"),

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from wovenskin.skin.layout import ChannelOrder, SkinLayout
-from wovenskin.skin.protocol import DecodeError
+from wovenskin.skin.messages import DecodeError
 from wovenskin.skin.textlines import TextLineDecoder
 
 LAYOUT = SkinLayout(3, 4)

@@ -35,8 +35,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, ROW_MAJOR, ChannelOrder, SkinLayout
-from wovenskin.skin.protocol import (
-    DELIMITER,
+from wovenskin.skin.messages import (
     AckMessage,
     AckStatus,
     CommandId,
@@ -45,12 +44,15 @@ from wovenskin.skin.protocol import (
     InfoMessage,
     LogMessage,
     SampleDtype,
+    dequantize,
+    quantize,
+)
+from wovenskin.skin.protocol import (
+    DELIMITER,
     StreamDecoder,
     cobs_frame,
-    dequantize,
     encode_message,
     pack_message,
-    quantize,
 )
 
 if TYPE_CHECKING:

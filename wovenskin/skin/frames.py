@@ -37,11 +37,6 @@ class SkinInfo:
     def to_dict(self) -> dict:
         return asdict(self)
 
-    @classmethod
-    def from_dict(cls, d: dict) -> SkinInfo:
-        known = {k: d[k] for k in cls.__dataclass_fields__ if k in d}
-        return cls(**known)
-
 
 @dataclass
 class Frame:

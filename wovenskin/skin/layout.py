@@ -17,6 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wovenskin.errors import ConfigError
+from wovenskin.settings import from_dict
+
 DEFAULT_ROWS = 10
 DEFAULT_COLS = 10
 DEFAULT_ROW_PITCH_MM = 14.0
@@ -35,9 +38,11 @@ class SkinLayout:
 
     def __post_init__(self) -> None:
         if self.rows < 1 or self.cols < 1:
-            raise ValueError(f"skin needs at least one row and column, got {self.rows}x{self.cols}")
+            raise ConfigError(
+                f"skin needs at least one row and column, got {self.rows}x{self.cols}"
+            )
         if self.row_pitch_mm <= 0 or self.col_pitch_mm <= 0:
-            raise ValueError("channel pitches must be positive")
+            raise ConfigError("channel pitches must be positive")
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -91,12 +96,8 @@ class SkinLayout:
 
     @classmethod
     def from_dict(cls, d: dict) -> SkinLayout:
-        return cls(
-            rows=int(d["rows"]),
-            cols=int(d["cols"]),
-            row_pitch_mm=float(d.get("row_pitch_mm", DEFAULT_ROW_PITCH_MM)),
-            col_pitch_mm=float(d.get("col_pitch_mm", DEFAULT_COL_PITCH_MM)),
-        )
+        """The layout :meth:`to_dict` wrote; one :class:`ConfigError` line if it is bad."""
+        return from_dict(cls, d, "skin layout")
 
 
 @dataclass(frozen=True)
@@ -116,7 +117,7 @@ class ChannelOrder:
 
     def __post_init__(self) -> None:
         if self.major not in ("row", "col"):
-            raise ValueError(f"channel order must be row- or col-major, got {self.major!r}")
+            raise ConfigError(f"channel order must be row- or col-major, got {self.major!r}")
 
     @classmethod
     def parse(cls, text: str) -> ChannelOrder:
@@ -127,11 +128,11 @@ class ChannelOrder:
         major_word = parts[0].removesuffix("-major")
         aliases = {"row": "row", "rows": "row", "col": "col", "cols": "col", "column": "col"}
         if major_word not in aliases:
-            raise ValueError(f"unknown channel order {text!r}: start with row-major or col-major")
+            raise ConfigError(f"unknown channel order {text!r}: start with row-major or col-major")
         flips = set(parts[1:])
         unknown = flips - {"flip-rows", "flip-cols"}
         if unknown:
-            raise ValueError(f"unknown channel order option(s) {sorted(unknown)} in {text!r}")
+            raise ConfigError(f"unknown channel order option(s) {sorted(unknown)} in {text!r}")
         return cls(aliases[major_word], "flip-rows" in flips, "flip-cols" in flips)
 
     def __str__(self) -> str:

@@ -14,16 +14,8 @@ drains.  The thread never dies on stream problems; it counts them in
 - serial errors or the port vanishing: ``disconnected``, then reconnection with
   exponential backoff (0.05 s doubling to 2 s), ``connected``, GET_INFO and START again.
 
-Stream clock (``Frame.t``, seconds since :meth:`start`):
-
-- binary: the device timestamp, offset so that the first frame lands on the host's
-  elapsed time; at each device reset the offset is re-anchored (to the later of the host
-  time and the previous ``t`` plus one sample period), so ``t`` is continuous and
-  strictly increasing across resets and reconnects, and keeps the device's sample spacing.
-- text: lines carry no trustworthy clock, so ``seq`` is a host line counter and ``t``
-  advances by one nominal period (``rate`` option) per line; it is pulled back to the
-  host clock whenever the two differ by more than 0.1 s (after a pause, or when the
-  nominal rate is wrong), never going backwards.
+Frames carry the stream clock of :mod:`wovenskin.skin.stream_clock`; the spec's options
+are :class:`~wovenskin.skin.serial_options.SerialOptions`.
 """
 
 from __future__ import annotations
@@ -36,9 +28,10 @@ from collections import deque
 
 import serial
 
+from wovenskin.errors import ConfigError, DeviceError
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, ROW_MAJOR, ChannelOrder, SkinLayout
-from wovenskin.skin.protocol import (
+from wovenskin.skin.messages import (
     AckMessage,
     AckStatus,
     CommandId,
@@ -48,22 +41,20 @@ from wovenskin.skin.protocol import (
     InfoMessage,
     LogMessage,
     MessageType,
-    StreamDecoder,
-    encode_message,
 )
+from wovenskin.skin.protocol import StreamDecoder, encode_message
+from wovenskin.skin.serial_options import DEFAULT_BAUD, DEFAULT_STALL_MS, read_serial_options
+from wovenskin.skin.stream_clock import StreamClock
 from wovenskin.skin.textlines import TextLineDecoder
 
 log = logging.getLogger(__name__)
 
-DEFAULT_BAUD = 921600
-DEFAULT_STALL_MS = 30.0
 READ_TIMEOUT_S = 0.005  # longest a read blocks: bounds stall-detection and close latency
 WRITE_TIMEOUT_S = 0.5
 BACKOFF_START_S = 0.05
 BACKOFF_MAX_S = 2.0
 ACK_TIMEOUT_S = 1.0
 INFO_RETRY_S = 1.0
-TEXT_CLOCK_TOLERANCE_S = 0.1
 MAX_QUEUED_ITEMS = 4000  # 20 s at 200 Hz; beyond this the oldest items are dropped
 
 COMMANDS = {
@@ -72,20 +63,6 @@ COMMANDS = {
     "recalibrate": CommandId.RECALIBRATE,
     "get_info": CommandId.GET_INFO,
 }
-OPTIONS = ("format", "order", "rows", "cols", "rate", "baud", "stall_ms", "sep", "skip")
-_SEPARATOR_NAMES = {"comma": ",", "semicolon": ";", "tab": "\t", "space": " ", "auto": ""}
-
-
-def _option(options: dict[str, str], key: str, kind: type, default):
-    if key not in options or options[key] == "":
-        return default
-    try:
-        return kind(options[key])
-    except ValueError:
-        raise ValueError(
-            f"serial option {key} must be {'an integer' if kind is int else 'a number'}, "
-            f"got {options[key]!r}"
-        ) from None
 
 
 class SerialSkinSource:
@@ -105,13 +82,13 @@ class SerialSkinSource:
         skip_columns: int = 0,
     ) -> None:
         if fmt not in ("binary", "text"):
-            raise ValueError(f"serial format must be binary or text, got {fmt!r}")
+            raise ConfigError(f"serial format must be binary or text, got {fmt!r}")
         if not rate_hz > 0:
-            raise ValueError(f"rate must be positive, got {rate_hz}")
+            raise ConfigError(f"rate must be positive, got {rate_hz}")
         if not stall_ms > 0:
-            raise ValueError(f"stall_ms must be positive, got {stall_ms}")
+            raise ConfigError(f"stall_ms must be positive, got {stall_ms}")
         if baud <= 0:
-            raise ValueError(f"baud must be positive, got {baud}")
+            raise ConfigError(f"baud must be positive, got {baud}")
         self.port = port
         self.fmt = fmt
         self.baud = baud
@@ -153,11 +130,7 @@ class SerialSkinSource:
         self._awaiting_ack: dict[int, tuple[str, float]] = {}
         self._acks: deque[AckMessage] = deque(maxlen=64)
 
-        self._last_seq: int | None = None
-        self._last_device_us = 0
-        self._anchor_t = 0.0
-        self._anchor_device_us = 0
-        self._last_t: float | None = None
+        self._clock = StreamClock()
         self._text_seq = 0
         self._last_good: float | None = None
         self._stalled = False
@@ -165,31 +138,17 @@ class SerialSkinSource:
     @classmethod
     def from_options(cls, port: str, options: dict[str, str]) -> SerialSkinSource:
         """Build from ``serial:PORT?key=value&...`` options (see ``docs/protocol.md``)."""
-        unknown = sorted(set(options) - set(OPTIONS))
-        if unknown:
-            raise ValueError(f"unknown serial option(s) {unknown}; known: {', '.join(OPTIONS)}")
-        fmt = options.get("format", "binary").strip().lower() or "binary"
-        if fmt not in ("binary", "text"):
-            raise ValueError(f"serial option format must be binary or text, got {fmt!r}")
-        if fmt == "binary" and options.get("order"):
-            raise ValueError("order applies to format=text; binary devices declare it in INFO")
-        for text_only in ("sep", "skip"):
-            if fmt == "binary" and options.get(text_only):
-                raise ValueError(f"serial option {text_only} applies to format=text only")
-        rows = _option(options, "rows", int, 10)
-        cols = _option(options, "cols", int, 10)
-        sep = options.get("sep", "")
-        sep = _SEPARATOR_NAMES.get(sep.lower(), sep)
+        o = read_serial_options(options)
         return cls(
             port,
-            fmt=fmt,
-            layout=SkinLayout(rows, cols),
-            order=ChannelOrder.parse(options.get("order", "") or "row-major"),
-            rate_hz=_option(options, "rate", float, DEFAULT_SAMPLE_RATE_HZ),
-            baud=_option(options, "baud", int, DEFAULT_BAUD),
-            stall_ms=_option(options, "stall_ms", float, DEFAULT_STALL_MS),
-            text_separator=sep or None,
-            skip_columns=_option(options, "skip", int, 0),
+            fmt=o.format,
+            layout=SkinLayout(o.rows, o.cols),
+            order=ChannelOrder.parse(o.order or "row-major"),
+            rate_hz=o.rate,
+            baud=o.baud,
+            stall_ms=o.stall_ms,
+            text_separator=o.separator,
+            skip_columns=o.skip,
         )
 
     # ------------------------------------------------------------------ SkinSource API
@@ -207,8 +166,9 @@ class SerialSkinSource:
     def start(self) -> None:
         """Open the port and start the reader thread (idempotent).
 
-        Raises ``ConnectionError`` if the port cannot be opened at all; once streaming,
-        losing the port is reported as events and handled by reconnecting.
+        Raises :class:`~wovenskin.errors.DeviceError` (a ``ConnectionError``) if the port
+        cannot be opened at all; once streaming, losing the port is reported as events and
+        handled by reconnecting.
         """
         with self._cond:
             if self._thread is not None:
@@ -216,7 +176,7 @@ class SerialSkinSource:
             self._t0 = time.monotonic()
             error = self._connect(self._t0)
             if error:
-                raise ConnectionError(f"cannot open serial port {self.port}: {error}")
+                raise DeviceError(f"cannot open serial port {self.port}: {error}")
             self._stop.clear()
             self._thread = threading.Thread(
                 target=self._run, name=f"skin-serial-{self.port}", daemon=True
@@ -242,7 +202,7 @@ class SerialSkinSource:
     def send_command(self, command: str) -> None:
         name = command.strip().lower()
         if name not in COMMANDS:
-            raise ValueError(f"unknown skin command {command!r}; use {', '.join(COMMANDS)}")
+            raise ConfigError(f"unknown skin command {command!r}; use {', '.join(COMMANDS)}")
         if self.fmt != "binary":
             log.warning(
                 "serial %s: text-format devices take no commands; %r ignored", self.port, name
@@ -528,34 +488,15 @@ class SerialSkinSource:
 
         Returns ``None`` for an exact duplicate of the previous frame.
         """
-        elapsed = now - self._t0
-        last_seq = self._last_seq
-        if last_seq is None:
-            self._anchor(elapsed, device_us)
-        else:
-            step = (seq - last_seq) & 0xFFFFFFFF
-            if step == 0 and device_us == self._last_device_us:
-                return None
-            if step == 0 or step >= 1 << 31 or device_us < self._last_device_us:
-                self._stats.resets += 1
-                message = f"device reset: sequence {last_seq} -> {seq}"
-                log.info("serial %s: %s", self.port, message)
-                self._emit(SourceEvent("reset", message, now))
-                last_t = self._last_t if self._last_t is not None else elapsed
-                self._anchor(max(elapsed, last_t + 1.0 / self._info.sample_rate_hz), device_us)
-            else:
-                self._stats.dropped_frames += step - 1
-        self._last_seq = seq
-        self._last_device_us = device_us
-        t = self._anchor_t + (device_us - self._anchor_device_us) * 1e-6
-        if self._last_t is not None and t <= self._last_t:
-            t = self._last_t + 1e-6  # equal device timestamps: keep the clock strictly increasing
-        self._last_t = t
-        return t
-
-    def _anchor(self, t: float, device_us: int) -> None:
-        self._anchor_t = t
-        self._anchor_device_us = device_us
+        period_s = 1.0 / self._info.sample_rate_hz
+        placed = self._clock.place_frame(seq, device_us, now - self._t0, period_s)
+        if placed.reset_from is not None:
+            self._stats.resets += 1
+            message = f"device reset: sequence {placed.reset_from} -> {seq}"
+            log.info("serial %s: %s", self.port, message)
+            self._emit(SourceEvent("reset", message, now))
+        self._stats.dropped_frames += placed.dropped
+        return placed.t
 
     def _process_text(self, data: bytes, now: float) -> None:
         for item in self._text.feed(data):
@@ -564,17 +505,7 @@ class SerialSkinSource:
                 continue
             seq = self._text_seq
             self._text_seq += 1
-            t = self._text_time(now - self._t0)
+            t = self._clock.place_line(now - self._t0, 1.0 / self._nominal_rate)
             self._stats.good_frames += 1
             self._frame_arrived(now)
             self._emit(Frame(seq, t, item, t_host=now, device_t_us=None))
-
-    def _text_time(self, elapsed: float) -> float:
-        if self._last_t is None:
-            t = elapsed
-        else:
-            t = self._last_t + 1.0 / self._nominal_rate
-            if abs(elapsed - t) > TEXT_CLOCK_TOLERANCE_S:
-                t = max(elapsed, self._last_t + 1e-6)
-        self._last_t = t
-        return t

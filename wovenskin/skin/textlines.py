@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from wovenskin.skin.layout import ROW_MAJOR, ChannelOrder, SkinLayout
-from wovenskin.skin.protocol import BytesLike, DecodeError
+from wovenskin.skin.messages import BytesLike, DecodeError
 
 _AUTO_SEPARATORS = (",", ";", "\t")
 
