@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from wovenskin.robots.registry import make_robot
+import wovenskin
+from wovenskin import specs
+from wovenskin.errors import ConfigError
+from wovenskin.robots import registry
+from wovenskin.robots.registry import SpecError, make_robot, parse_robot_spec
 from wovenskin.robots.sim import SimRobot
+from wovenskin.robots.spec import Backend, RobotOptions, RobotSpec
 from wovenskin.robots.techman import TechmanRobot
 from wovenskin.robots.ur import URRobot
 
@@ -100,8 +108,6 @@ def test_bad_specs_list_the_valid_forms(spec: str) -> None:
 
 
 def test_specs_are_parsed_without_building_anything() -> None:
-    from wovenskin.robots.registry import parse_robot_spec
-
     spec = parse_robot_spec(" UR:10.0.0.5?model=UR5e&safety=degraded ")
     assert (spec.kind, spec.host, spec.port) == ("ur", "10.0.0.5", None)
     assert spec.options == {"model": "ur5e", "safety": "degraded"} and spec.degraded_safety
@@ -126,15 +132,13 @@ def test_the_degraded_safety_opt_in_travels_with_the_backend() -> None:
         ("ur:h?model=ur5e&model=ur10e", "option 'model' twice"),
         ("ur:h?model=", "no value for option 'model'"),
         ("ur:h?model", "no value for option 'model'"),
-        ("sim?safety=off", "spec 'sim?safety=off' has an unknown safety mode 'off'"),
-        ("tm:h?state_port=x", "spec 'tm:h?state_port=x' has a bad port 'x'"),
+        ("sim?safety=off", "spec 'sim?safety=off' has bad sim options: safety: unknown safety"),
+        ("tm:h?state_port=x", "spec 'tm:h?state_port=x' has bad tm options: state_port: bad port"),
         ("sim:?safety=degraded", "not understood"),
         ("ur:h?model=ur99", "unknown UR model 'ur99'"),
     ],
 )
 def test_bad_options_are_one_line_naming_the_problem(spec: str, why: str) -> None:
-    from wovenskin.robots.registry import parse_robot_spec
-
     for parse in (parse_robot_spec, make_robot):
         with pytest.raises(ValueError, match="valid forms") as info:
             parse(spec)
@@ -144,10 +148,6 @@ def test_bad_options_are_one_line_naming_the_problem(spec: str, why: str) -> Non
 def test_no_other_module_parses_robot_specs() -> None:
     """Robot spec strings are taken apart in robots/registry.py only (other modules pass
     them on to make_robot or parse_robot_spec)."""
-    from pathlib import Path
-
-    import wovenskin
-
     root = Path(wovenskin.__file__).parent
     offenders = []
     for path in root.rglob("*.py"):
@@ -158,3 +158,35 @@ def test_no_other_module_parses_robot_specs() -> None:
             if needle in text:
                 offenders.append(f"{path.relative_to(root)}: {needle}")
     assert offenders == []
+
+
+def test_spec_errors_are_config_errors() -> None:
+    with pytest.raises(SpecError) as info:
+        make_robot("kuka:1.2.3.4")
+    assert isinstance(info.value, specs.SpecError) and isinstance(info.value, ConfigError)
+
+
+def test_a_backend_registered_with_one_line_is_reachable_by_its_spec(monkeypatch) -> None:
+    """A new backend: its options dataclass, its build function and one registry line."""
+
+    @dataclass(frozen=True)
+    class ToyOptions(RobotOptions):
+        speed: float = 1.0
+
+    built: list[RobotSpec] = []
+
+    def build_toy(spec: RobotSpec) -> SimRobot:
+        built.append(spec)
+        return SimRobot()
+
+    toy = Backend("toy:HOST[?speed=X]", build_toy, ToyOptions)
+    monkeypatch.setitem(registry.BACKENDS, "toy", toy)  # the one registry line
+
+    robot = make_robot("toy:arm.local?speed=2.5&safety=degraded")
+    assert isinstance(robot, SimRobot) and robot.degraded_safety
+    assert built[0].host == "arm.local" and built[0].settings == ToyOptions("degraded", 2.5)
+    assert parse_robot_spec("toy:h").settings == ToyOptions()
+    with pytest.raises(SpecError, match=r"unknown option 'gain=2'.*valid forms: .*toy:HOST"):
+        make_robot("toy:h?gain=2")
+    with pytest.raises(SpecError, match="speed"):
+        make_robot("toy:h?speed=fast")

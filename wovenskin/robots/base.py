@@ -29,11 +29,17 @@ from typing import Any
 
 import numpy as np
 
+from wovenskin.errors import DeviceError
+
 N_JOINTS = 6
 
 
-class RobotError(RuntimeError):
-    """A robot backend could not carry out a command; the message is one line."""
+class RobotError(DeviceError, RuntimeError):
+    """A robot backend could not carry out a command; the message is one line.
+
+    A :class:`~wovenskin.errors.DeviceError` (the command line prints it as one line); it
+    stays a ``RuntimeError``, as it was before the error root existed.
+    """
 
 
 def finite_vector(values: object, size: int, what: str) -> np.ndarray:
