@@ -15,7 +15,8 @@ import zlib
 
 import numpy as np
 
-from wovenskin.recording.native import MAGIC, SYNC, RecordType, encode_document
+from wovenskin.recording.documents import encode_document
+from wovenskin.recording.records import MAGIC, SYNC, RecordType
 from wovenskin.skin.frames import SkinInfo
 
 

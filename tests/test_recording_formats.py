@@ -13,7 +13,6 @@ from hypothesis import strategies as st
 from tests.conftest import SHARED
 from wovenskin.recording.formats import (
     METADATA_JSON_KEY,
-    FormatError,
     LabelledCaptures,
     LabelledStream,
     read_labelled_captures,
@@ -21,6 +20,7 @@ from wovenskin.recording.formats import (
     write_labelled_captures,
     write_labelled_stream,
 )
+from wovenskin.recording.untrusted import FormatError
 
 HAART = SHARED / "datasets" / "haart" / "haart-train.npz"
 

@@ -35,16 +35,14 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from wovenskin.cli import app
+from wovenskin.recording.documents import decode_document
 from wovenskin.recording.files import file_kind, read_any, read_captures, read_stream
-from wovenskin.recording.formats import (
-    NOT_OURS,
-    FormatError,
-    read_labelled_captures,
-    read_labelled_stream,
-)
+from wovenskin.recording.formats import read_labelled_captures, read_labelled_stream
 from wovenskin.recording.inspect import convert_file, describe_file
-from wovenskin.recording.native import MAGIC, RecordType, decode_document, read_recording
+from wovenskin.recording.native import read_recording
+from wovenskin.recording.records import MAGIC, RecordType
 from wovenskin.recording.replay import ReplaySource
+from wovenskin.recording.untrusted import NOT_OURS, FormatError, load_npz
 
 
 def _convert_npz(path: Path) -> object:
@@ -142,9 +140,7 @@ def test_npz_members_read_back_exactly(tmp_path):
     for compress in (False, True):
         path = tmp_path / f"x{compress}.npz"
         path.write_bytes(npz({k: npy(np.asarray(v)) for k, v in arrays.items()}, compress))
-        from wovenskin.recording.formats import _load_npz
-
-        loaded = _load_npz(path)
+        loaded = load_npz(path)
         for key, value in arrays.items():
             assert loaded[key].dtype == np.asarray(value).dtype
             np.testing.assert_array_equal(loaded[key], value)

@@ -18,24 +18,17 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from wovenskin.recording import native
-from wovenskin.recording.formats import (
-    FormatError,
-    LabelledStream,
-    read_labelled_stream,
-    write_labelled_stream,
-)
+from wovenskin.recording.documents import decode_document, encode_document
+from wovenskin.recording.formats import LabelledStream, read_labelled_stream, write_labelled_stream
 from wovenskin.recording.native import (
-    MAGIC,
-    SYNC,
     Recording,
-    RecordingWriter,
-    RecordType,
-    decode_document,
-    encode_document,
     read_recording,
     recording_from_labelled_stream,
     write_recording,
 )
+from wovenskin.recording.records import MAGIC, SYNC, RecordType
+from wovenskin.recording.untrusted import FormatError
+from wovenskin.recording.writer import RecordingWriter
 from wovenskin.skin.frames import Frame, SkinInfo
 
 REPO = Path(__file__).resolve().parents[1]

@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wovenskin.recording.formats import FormatError, LabelledStream, write_labelled_stream
-from wovenskin.recording.native import RecordingWriter
+from wovenskin.recording.formats import LabelledStream, write_labelled_stream
 from wovenskin.recording.replay import FAST_BATCH, ReplaySource
+from wovenskin.recording.untrusted import FormatError
+from wovenskin.recording.writer import RecordingWriter
 from wovenskin.runtime.sources import open_source
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent
 from wovenskin.skin.source import SkinSource
@@ -168,11 +169,11 @@ def test_commands_are_accepted_but_checked(tmp_path):
 @pytest.mark.parametrize(
     ("options", "words"),
     [
-        ({"speed": "fast"}, "not a number"),
+        ({"speed": "fast"}, "speed: Input should be a valid number"),
         ({"speed": "-1"}, ">= 0"),
-        ({"loop": "maybe"}, "0 or 1"),
+        ({"loop": "maybe"}, "loop: Input should be a valid boolean"),
         ({"start_s": "nan"}, "finite"),
-        ({"sped": "2"}, "unknown replay option"),
+        ({"sped": "2"}, "replay options: unknown setting 'sped'"),
     ],
 )
 def test_bad_options(tmp_path, options, words):

@@ -2,11 +2,12 @@
 
 wovenskin reads three kinds of file (``docs/recording-format.md``): a native ``.wsrec``
 recording, a labelled-stream ``.npz`` and a labelled-captures ``.npz``.  :func:`file_kind`
-decides which by content (never by suffix alone), and :func:`read_stream` /
-:func:`read_captures` / :func:`read_any` read through it, so ``info``, ``convert``,
-``replay``, ``eval-stream``, ``dataset``, ``train``, ``eval`` and ``run --skin replay:``
-report the same one-line :class:`~wovenskin.recording.formats.FormatError` for the same bad
-file (e.g. :data:`~wovenskin.recording.formats.NOT_OURS` for random bytes).
+decides which by content (never by suffix alone), and :func:`read_stream`,
+:func:`read_as_recording`, :func:`read_captures` and :func:`read_any` read through it, so
+``info``, ``convert``, ``replay``, ``eval-stream``, ``dataset``, ``train``, ``eval`` and
+``run --skin replay:`` report the same one-line
+:class:`~wovenskin.recording.untrusted.FormatError` for the same bad file (e.g.
+:data:`~wovenskin.recording.untrusted.NOT_OURS` for random bytes).
 
 :func:`unknown_labels` finds event labels that are none of wovenskin's gesture classes
 (``docs/gestures.md``): ``info`` flags them, scoring refuses them.
@@ -22,14 +23,13 @@ from typing import Literal
 
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recording.formats import (
-    FormatError,
     LabelledCaptures,
     LabelledStream,
-    identify,
     read_labelled_captures,
     read_labelled_stream,
 )
-from wovenskin.recording.native import Recording, read_recording
+from wovenskin.recording.native import Recording, read_recording, recording_from_labelled_stream
+from wovenskin.recording.untrusted import FormatError, identify
 
 FileKind = Literal["recording", "stream", "captures"]
 CAPTURES_ONLY_KEYS = ("lengths", "labels", "class_names", "groups")
@@ -63,15 +63,14 @@ def read_any(path: str | os.PathLike) -> Recording | LabelledStream | LabelledCa
     return read_labelled_captures(path)
 
 
-def read_stream(path: str | os.PathLike, purpose: str = "this") -> LabelledStream:
-    """A labelled stream from a ``.wsrec`` (its trial labels become events) or a stream
-    ``.npz``; labelled captures are refused in one line naming ``purpose`` (a command)."""
+def _read_a_stream(path: str | os.PathLike, purpose: str) -> Recording | LabelledStream:
+    """The recording (with frames) or labelled stream ``path`` holds; captures refused."""
     kind = file_kind(path)
     if kind == "recording":
         recording = read_recording(path)
         if len(recording.t) == 0:
             raise FormatError(f"{path}: recording holds no frames")
-        return recording.to_labelled_stream()
+        return recording
     if kind == "stream":
         return read_labelled_stream(path)
     raise FormatError(
@@ -80,14 +79,33 @@ def read_stream(path: str | os.PathLike, purpose: str = "this") -> LabelledStrea
     )
 
 
+def read_stream(path: str | os.PathLike, purpose: str = "this") -> LabelledStream:
+    """A labelled stream from a ``.wsrec`` (its trial labels become events) or a stream
+    ``.npz``; labelled captures are refused in one line naming ``purpose`` (a command)."""
+    data = _read_a_stream(path, purpose)
+    return data.to_labelled_stream() if isinstance(data, Recording) else data
+
+
+def read_as_recording(path: str | os.PathLike, purpose: str = "this") -> Recording:
+    """A :class:`Recording` from a ``.wsrec`` (as it is) or a stream ``.npz`` (its events
+    become trial labels, its stored skin info the info); captures refused like
+    :func:`read_stream`."""
+    data = _read_a_stream(path, purpose)
+    if isinstance(data, Recording):
+        return data
+    try:
+        return recording_from_labelled_stream(data)
+    except ValueError as exc:
+        raise FormatError(f"{path}: {exc}") from None
+
+
 def read_captures(path: str | os.PathLike, purpose: str = "this") -> LabelledCaptures:
     """Labelled captures from ``path``; a recording or a stream is refused in one line."""
     kind = file_kind(path)
     if kind != "captures":
         what = "a .wsrec recording" if kind == "recording" else "a labelled stream"
         raise FormatError(
-            f"{path}: holds {what}, not labelled captures; {purpose} needs a labelled-captures "
-            ".npz"
+            f"{path}: holds {what}, not labelled captures; {purpose} needs a labelled-captures .npz"
         )
     return read_labelled_captures(path)
 

@@ -23,17 +23,17 @@ from wovenskin.recording.files import (
     unknown_labels_message,
 )
 from wovenskin.recording.formats import (
-    FormatError,
     read_labelled_captures,
     read_labelled_stream,
     write_labelled_stream,
 )
 from wovenskin.recording.native import (
-    LABEL_KIND_TRIAL,
     read_recording,
     recording_from_labelled_stream,
     write_recording,
 )
+from wovenskin.recording.records import LABEL_KIND_TRIAL
+from wovenskin.recording.untrusted import FormatError
 
 __all__ = ["convert_file", "describe_file", "file_kind"]
 

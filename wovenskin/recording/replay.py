@@ -8,28 +8,39 @@ polls).  ``start_s`` starts at the first frame with ``t >= start_s`` (file time)
 the stream clock keeps increasing.  A non-looping replay emits ``SourceEvent("end")`` once
 after its last frame.  The file's labels are available as :attr:`ReplaySource.events`
 (ground truth, in file time).  Bad files raise :class:`FormatError` when the source is
-created, never later.
+created, never later.  A ``replay:FILE?...`` spec's options are :class:`ReplayOptions`.
 """
 
 from __future__ import annotations
 
 import os
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from wovenskin.recording.files import file_kind, read_stream
-from wovenskin.recording.formats import FormatError
-from wovenskin.recording.native import LABEL_KIND_TRIAL, read_recording, stored_skin_info
+from wovenskin.errors import ConfigError
+from wovenskin.recording.files import read_as_recording
+from wovenskin.recording.records import LABEL_KIND_TRIAL
+from wovenskin.recording.untrusted import FormatError
+from wovenskin.settings import from_dict
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 
-OPTIONS = ("speed", "loop", "start_s")
 FAST_BATCH = 256
 """Most frames one :meth:`ReplaySource.poll` returns at ``speed=0``."""
 
 _COMMANDS = ("start", "stop", "recalibrate")
+
+
+@dataclass(frozen=True)
+class ReplayOptions:
+    """What ``replay:FILE?...`` may say: ``speed`` (1 = real time, 0 = as fast as polled),
+    ``loop`` (repeat the file) and ``start_s`` (file time to start at)."""
+
+    speed: float = 1.0
+    loop: bool = False
+    start_s: float = 0.0
 
 
 class ReplaySource:
@@ -44,16 +55,16 @@ class ReplaySource:
         start_s: float = 0.0,
     ) -> None:
         if not (np.isfinite(speed) and speed >= 0):
-            raise ValueError(f"replay speed must be >= 0 (0 = as fast as polled), got {speed}")
+            raise ConfigError(f"replay speed must be >= 0 (0 = as fast as polled), got {speed}")
         if not np.isfinite(start_s):
-            raise ValueError(f"replay start_s must be a finite time in seconds, got {start_s}")
+            raise ConfigError(f"replay start_s must be a finite time in seconds, got {start_s}")
         self.path = Path(path)
         self.speed = float(speed)
         self.loop = bool(loop)
         self._load(self.path)
         self._start_index = int(np.searchsorted(self._t, start_s, side="left"))
         if self._start_index == len(self._t):
-            raise ValueError(
+            raise ConfigError(
                 f"replay start_s={start_s} is past the end of {self.path} "
                 f"(last frame at t={self._t[-1]:.3f} s)"
             )
@@ -72,15 +83,9 @@ class ReplaySource:
     @classmethod
     def from_options(cls, path: str, options: dict[str, str]) -> ReplaySource:
         """Create from ``replay:PATH?speed=2&loop=1&start_s=10`` style options."""
-        unknown = sorted(set(options) - set(OPTIONS))
-        if unknown:
-            raise ValueError(f"unknown replay option(s) {unknown}; known: {', '.join(OPTIONS)}")
-        return cls(
-            path,
-            speed=_float_option(options, "speed", 1.0),
-            loop=_bool_option(options, "loop"),
-            start_s=_float_option(options, "start_s", 0.0),
-        )
+        given = {key: value for key, value in options.items() if value.strip()}
+        o = from_dict(ReplayOptions, given, "replay options")  # an empty value: the default
+        return cls(path, speed=o.speed, loop=o.loop, start_s=o.start_s)
 
     # -- SkinSource
 
@@ -132,7 +137,7 @@ class ReplaySource:
     def send_command(self, command: str) -> None:
         """Replays have no device: known commands are accepted and ignored."""
         if command not in _COMMANDS:
-            raise ValueError(f"unknown command {command!r}; known: {', '.join(_COMMANDS)}")
+            raise ConfigError(f"unknown command {command!r}; known: {', '.join(_COMMANDS)}")
 
     def close(self) -> None:
         self._closed = True
@@ -141,36 +146,15 @@ class ReplaySource:
     # -- internals
 
     def _load(self, path: Path) -> None:
-        self._warnings: list[str] = []
-        kind = file_kind(path)
-        if kind == "recording":
-            recording = read_recording(path)
-            if len(recording.t) == 0:
-                raise FormatError(f"{path}: recording holds no frames to replay")
-            info = recording.info
-            frames, t, seq = recording.frames, recording.t, recording.seq
-            self._device_t_us: np.ndarray | None = recording.device_t_us
-            self._events = [
-                (label.label, label.start_s, label.end_s)
-                for label in recording.labels
-                if label.kind == LABEL_KIND_TRIAL
-            ]
-            self._warnings = list(recording.warnings)
-        else:
-            stream = read_stream(path, "replay")
-            try:
-                info = replace(stored_skin_info(stream), sample_rate_hz=stream.sample_rate_hz)
-            except ValueError as exc:
-                raise FormatError(f"{path}: {exc}") from None
-            frames, t = stream.frames, stream.t
-            seq = np.arange(len(t), dtype=np.int64)
-            self._device_t_us = None
-            self._events = [
-                (str(label), float(start), float(end))
-                for label, start, end in zip(
-                    stream.event_labels, stream.event_start_s, stream.event_end_s, strict=True
-                )
-            ]
+        recording = read_as_recording(path, "replay")
+        frames, t, seq = recording.frames, recording.t, recording.seq
+        self._device_t_us = recording.device_t_us  # -1 where the file has no device time
+        self._events = [
+            (label.label, label.start_s, label.end_s)
+            for label in recording.labels
+            if label.kind == LABEL_KIND_TRIAL
+        ]
+        self._warnings = list(recording.warnings)
         backwards = np.flatnonzero(~(np.diff(t) >= 0))
         if backwards.size:
             i = int(backwards[0]) + 1
@@ -179,7 +163,7 @@ class ReplaySource:
         self._t = np.asarray(t, dtype=np.float64)
         self._seq = np.asarray(seq, dtype=np.int64)
         rows, cols = self._frames.shape[1:]
-        self._info = replace(info, rows=rows, cols=cols, source=f"replay:{path}")
+        self._info = replace(recording.info, rows=rows, cols=cols, source=f"replay:{path}")
 
     def _stream_time(self, index: int) -> float:
         return float(self._t[index]) + self._pass * self._period_s
@@ -223,7 +207,7 @@ class ReplaySource:
         self._last_seq = seq
         self._stats.good_frames += 1
         device_t_us = None
-        if self._device_t_us is not None and self._device_t_us[index] >= 0:
+        if self._device_t_us[index] >= 0:
             device_t_us = int(self._device_t_us[index]) + round(self._pass * self._period_s * 1e6)
         return Frame(
             seq=seq,
@@ -232,22 +216,3 @@ class ReplaySource:
             t_host=now,
             device_t_us=device_t_us,
         )
-
-
-def _float_option(options: dict[str, str], key: str, default: float) -> float:
-    text = options.get(key, "")
-    if text.strip() == "":
-        return default
-    try:
-        return float(text)
-    except ValueError:
-        raise ValueError(f"replay option {key}={text!r} is not a number") from None
-
-
-def _bool_option(options: dict[str, str], key: str) -> bool:
-    text = options.get(key, "0").strip().lower()
-    if text in ("1", "true", "yes", "on"):
-        return True
-    if text in ("", "0", "false", "no", "off"):
-        return False
-    raise ValueError(f"replay option {key}={text!r} must be 0 or 1")
