@@ -113,6 +113,36 @@ class JointLimits:
     max_speed: np.ndarray  # (6,) rad/s
 
 
+def command_twist(twist: object) -> np.ndarray:
+    """A twist command as six finite numbers; else a one-line :class:`RobotError`."""
+    try:
+        return finite_vector(twist, 6, "twist")
+    except ValueError as exc:
+        raise RobotError(str(exc)) from None
+
+
+def joint_move_target(q: object, speed_fraction: float, limits: JointLimits) -> np.ndarray:
+    """A joint move's target within ``limits`` at a speed fraction in (0, 1]; else a
+    one-line :class:`RobotError`."""
+    target = np.asarray(q, dtype=float)
+    if target.shape != (N_JOINTS,) or not np.all(np.isfinite(target)):
+        raise RobotError("joint target must be six finite angles")
+    if not (np.isfinite(speed_fraction) and 0.0 < speed_fraction <= 1.0):
+        raise RobotError(f"speed fraction {speed_fraction} is not in (0, 1]")
+    if np.any(target < limits.lower) or np.any(target > limits.upper):
+        raise RobotError("joint target is outside the joint limits")
+    return target
+
+
+def check_pose_move(pose: object, speed: float, max_speed: float) -> None:
+    """A pose move's target must be a :class:`Pose` and its speed in (0, ``max_speed``] m/s;
+    else a one-line :class:`RobotError`."""
+    if not isinstance(pose, Pose):
+        raise RobotError("move_to_pose needs a Pose")
+    if not (np.isfinite(speed) and 0.0 < speed <= max_speed):
+        raise RobotError(f"pose move speed {speed} m/s is not in (0, {max_speed:g}]")
+
+
 JointFunction = Callable[[np.ndarray], np.ndarray]
 
 

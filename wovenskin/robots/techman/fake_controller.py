@@ -19,12 +19,12 @@ Every packet the client should never send is recorded in :attr:`violations`, eve
 ``ERROR`` answer in :attr:`script_errors`, every ``SetContinueVLine`` in
 :attr:`velocity_commands`, and every way velocity mode ended in :attr:`velocity_mode_exits`.
 Time comes from ``clock``; :meth:`advance` moves the simulation to the clock's time, so a
-test can drive it step by step. :mod:`.fake_server` puts it behind two TCP servers.
+test can drive it step by step. :mod:`.fake_scripts` reads the script lines;
+:mod:`.fake_server` puts the controller behind two TCP servers.
 """
 
 from __future__ import annotations
 
-import re
 import threading
 import time
 from collections.abc import Callable
@@ -34,6 +34,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from wovenskin.robots.techman.ethernet_slave import SvrMode, state_packet
+from wovenskin.robots.techman.fake_scripts import CALL, ScriptError, numbers, parse_args
 from wovenskin.robots.techman.protocol import (
     CommError,
     NodeEntered,
@@ -42,8 +43,6 @@ from wovenskin.robots.techman.protocol import (
     ScriptReply,
 )
 
-_CALL = re.compile(r"^([A-Za-z_]\w*)\((.*)\)$")
-_NUMBER = re.compile(r"^[-+]?(\d+(\.\d*)?|\.\d+)$")
 _ROTATION_SPEED_DEG_S = 45.0  # how fast a Line move turns the tool when it barely travels
 _MAX_RECORDED = 200_000  # velocity commands kept for inspection
 
@@ -63,51 +62,6 @@ class _Move:
     target: np.ndarray
     duration: float
     elapsed: float = 0.0
-
-
-class _ScriptError(Exception):
-    """A script line the controller refuses (answered ``ERROR;line``)."""
-
-
-def _split_args(text: str) -> list[str]:
-    parts, depth, current, quoted = [], 0, [], False
-    for char in text:
-        if char == '"':
-            quoted = not quoted
-        elif not quoted and char == "(":
-            depth += 1
-        elif not quoted and char == ")":
-            depth -= 1
-        if char == "," and not quoted and depth == 0:
-            parts.append("".join(current))
-            current = []
-        else:
-            current.append(char)
-    parts.append("".join(current))
-    return parts
-
-
-def _parse_args(text: str) -> list[object]:
-    if not text.strip():
-        return []
-    args: list[object] = []
-    for raw in _split_args(text):
-        item = raw.strip()
-        if len(item) >= 2 and item[0] == item[-1] == '"':
-            args.append(item[1:-1])
-        elif item in ("true", "false"):
-            args.append(item == "true")
-        elif _NUMBER.match(item):
-            args.append(float(item))
-        else:
-            raise _ScriptError(f"bad argument {item!r}")
-    return args
-
-
-def _numbers(args: list[object], count: int, name: str) -> np.ndarray:
-    if len(args) != count or not all(isinstance(a, float) for a in args):
-        raise _ScriptError(f"{name} takes {count} numbers, got {len(args)} arguments")
-    return np.array(args, dtype=float)
 
 
 def _ramp(current: np.ndarray, target: np.ndarray, max_step: float) -> np.ndarray:
@@ -322,7 +276,7 @@ class FakeController:
             try:
                 action, velocity_mode = self._compile(line.strip(), velocity_mode)
                 actions.append(action)
-            except _ScriptError as exc:
+            except ScriptError as exc:
                 bad.append(number)
                 self.script_errors.append(f"script {script_id} line {number}: {exc}")
         if bad:
@@ -335,27 +289,27 @@ class FakeController:
     # -- script semantics -------------------------------------------------------------
 
     def _compile(self, line: str, velocity_mode: bool) -> tuple[Callable[[], None], bool]:
-        match = _CALL.match(line)
+        match = CALL.match(line)
         if match is None:
-            raise _ScriptError(f"not a function call: {line[:40]!r}")
-        name, args = match.group(1), _parse_args(match.group(2))
+            raise ScriptError(f"not a function call: {line[:40]!r}")
+        name, args = match.group(1), parse_args(match.group(2))
         if name in ("ContinueVLine", "SetContinueVLine"):
             if not self.velocity_licence:
-                raise _ScriptError(f"{name} needs the velocity-mode licence")
+                raise ScriptError(f"{name} needs the velocity-mode licence")
             if self.error_code != 0:
-                raise _ScriptError(f"{name} refused during robot error {self.error_code}")
+                raise ScriptError(f"{name} refused during robot error {self.error_code}")
         if name == "ContinueVLine":
-            zero_ms, stop_ms = _numbers(args, 2, name)
+            zero_ms, stop_ms = numbers(args, 2, name)
             if not (zero_ms == int(zero_ms) > 0 and stop_ms == int(stop_ms) > 0):
-                raise _ScriptError("ContinueVLine timeouts must be positive whole milliseconds")
+                raise ScriptError("ContinueVLine timeouts must be positive whole milliseconds")
             return lambda: self._enter_velocity_mode(zero_ms, stop_ms), True
         if name == "SetContinueVLine":
-            velocity = _numbers(args, 6, name)
+            velocity = numbers(args, 6, name)
             if not velocity_mode:
-                raise _ScriptError("SetContinueVLine outside velocity mode")
+                raise ScriptError("SetContinueVLine outside velocity mode")
             return lambda: self._set_velocity(velocity), True
         if name == "StopContinueVmode":
-            _numbers(args, 0, name)
+            numbers(args, 0, name)
             return lambda: self._end_velocity_mode("StopContinueVmode"), False
         if name == "StopAndClearBuffer" and len(args) <= 1:
             return self._halt, velocity_mode
@@ -363,29 +317,29 @@ class FakeController:
             return self._compile_move(name, args, velocity_mode), velocity_mode
         if name == "QueueTag":
             if len(args) not in (1, 2):
-                raise _ScriptError("QueueTag takes a tag and an optional wait flag")
-            (tag,) = _numbers(args[:1], 1, name)
+                raise ScriptError("QueueTag takes a tag and an optional wait flag")
+            (tag,) = numbers(args[:1], 1, name)
             if tag != int(tag) or not 1 <= tag <= 15:
-                raise _ScriptError("QueueTag's tag is 1-15")
+                raise ScriptError("QueueTag's tag is 1-15")
             return lambda: self._tag(int(tag)), velocity_mode
         if name == "ScriptExit":
-            _numbers(args, 0, name)
+            numbers(args, 0, name)
             return self.leave_listen_node, False
-        raise _ScriptError(f"unknown function {name}")
+        raise ScriptError(f"unknown function {name}")
 
     def _compile_move(
         self, name: str, args: list[object], velocity_mode: bool
     ) -> Callable[[], None]:
         expected_format = "JPP" if name == "PTP" else "CAP"
         if len(args) != 11 or args[0] != expected_format or not isinstance(args[10], bool):
-            raise _ScriptError(f"bad {name} arguments")
-        values = _numbers(args[1:10], 9, name)
+            raise ScriptError(f"bad {name} arguments")
+        values = numbers(args[1:10], 9, name)
         if velocity_mode:
-            raise _ScriptError(f"{name} refused in velocity mode")
+            raise ScriptError(f"{name} refused in velocity mode")
         if self.error_code != 0 or not values[6] > 0:
-            raise _ScriptError(f"{name} refused")
+            raise ScriptError(f"{name} refused")
         if name == "PTP" and values[6] > 100:
-            raise _ScriptError("PTP speed above 100%")
+            raise ScriptError("PTP speed above 100%")
         return lambda: self._queue_move(name, values)
 
     def _enter_velocity_mode(self, zero_ms: float, stop_ms: float) -> None:

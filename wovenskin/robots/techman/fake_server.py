@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from wovenskin.robots.sim import tm5_900
 from wovenskin.robots.techman.ethernet_slave import SvrMode
 from wovenskin.robots.techman.fake_controller import FakeController, ReceivedPacket
 from wovenskin.robots.techman.protocol import Packet, PacketParser
@@ -80,8 +81,6 @@ class FakeListenNode(FakeController):
     def tm5_900(cls, **options: Any) -> FakeListenNode:
         """A fake whose joints move with the TM5-900 model (joints and TCP agree), at the
         model's initial pose unless ``q0_deg`` is given."""
-        from wovenskin.robots.sim import tm5_900
-
         options.setdefault("q0_deg", np.rad2deg(tm5_900.INITIAL_Q))
         return cls(
             forward_kinematics=tm5_900.forward_kinematics, jacobian=tm5_900.jacobian, **options

@@ -31,9 +31,12 @@ from wovenskin.robots.base import (
     RobotError,
     RobotState,
     SceneModel,
-    finite_vector,
+    check_pose_move,
+    command_twist,
+    joint_move_target,
 )
 from wovenskin.robots.dh import chain_jacobian
+from wovenskin.robots.ur import models
 from wovenskin.robots.ur.models import ur_model
 
 # UR e-series: every joint turns +-360 deg; base and shoulder of the bigger arms are the
@@ -42,6 +45,7 @@ from wovenskin.robots.ur.models import ur_model
 MAX_TOOL_LENGTH_M = 0.5  # a measured TCP further from the flange means the wrong model
 SERVO_PERIOD_S = 0.002  # the e-series controller's 500 Hz cycle
 TRACKING_ERROR = 0.01  # assumed speedL tracking allowance (see URRobot.capabilities)
+MAX_POSE_SPEED = 0.25  # m/s, the fastest moveL that move_to_pose sends
 
 UR_JOINT_LIMITS = JointLimits(
     lower=np.full(6, -2 * np.pi),
@@ -178,8 +182,6 @@ class URRobot(Robot):
         same number in rad/s^2 for rotation). The e-series controller updates joint
         velocities every :data:`SERVO_PERIOD_S`; :data:`TRACKING_ERROR` is an assumed
         allowance for ``speedL``'s tracking (not measured: no UR arm was at hand)."""
-        from wovenskin.robots.ur import models
-
         kinematics = None
         if self.model is not None:
             kinematics = Kinematics(self._forward_kinematics, self._jacobian)
@@ -278,10 +280,7 @@ class URRobot(Robot):
         )
 
     def send_twist(self, twist: np.ndarray) -> None:
-        try:
-            command = finite_vector(twist, 6, "twist")
-        except ValueError as exc:
-            raise RobotError(str(exc)) from None
+        command = command_twist(twist)
         control, _ = self._require()
         fault = self._fault()
         if fault is not None:
@@ -305,13 +304,7 @@ class URRobot(Robot):
         return control
 
     def move_to_joints(self, q: np.ndarray, speed_fraction: float = 0.2) -> None:
-        target = np.asarray(q, dtype=float)
-        if target.shape != (6,) or not np.all(np.isfinite(target)):
-            raise RobotError("joint target must be six finite angles")
-        if not (np.isfinite(speed_fraction) and 0.0 < speed_fraction <= 1.0):
-            raise RobotError(f"speed fraction {speed_fraction} is not in (0, 1]")
-        if np.any(target < self._limits.lower) or np.any(target > self._limits.upper):
-            raise RobotError("joint target is outside the joint limits")
+        target = joint_move_target(q, speed_fraction, self._limits)
         control = self._before_move()
         speed = float(np.min(self._limits.max_speed)) * speed_fraction
         ok = control.moveJ(target.tolist(), speed, 1.4, True)
@@ -319,10 +312,7 @@ class URRobot(Robot):
         self._moving_async = True
 
     def move_to_pose(self, pose: Pose, speed: float = 0.05) -> None:
-        if not isinstance(pose, Pose):
-            raise RobotError("move_to_pose needs a Pose")
-        if not (np.isfinite(speed) and 0.0 < speed <= 0.25):
-            raise RobotError(f"pose move speed {speed} m/s is not in (0, 0.25]")
+        check_pose_move(pose, speed, MAX_POSE_SPEED)
         control = self._before_move()
         ok = control.moveL(pose_to_ur(pose), float(speed), self.linear_accel, True)
         self._check(ok, "moveL")
