@@ -10,8 +10,9 @@ import time
 import numpy as np
 import pytest
 
+from wovenskin.errors import ConfigError
 from wovenskin.runtime.sources import open_source
-from wovenskin.sim.live import SimulatedSkinSource
+from wovenskin.sim.live import Fingertip, SimulatedSkinSource
 from wovenskin.skin.frames import Frame, SourceEvent
 from wovenskin.skin.source import SkinSource
 
@@ -44,9 +45,9 @@ def test_from_options_parses_every_option():
     assert src.seed == 3 and src.speed == 0.0
     assert src._scheduler.gestures == ["swipe_up", "push"]
     assert src._scheduler.idle_s == (0.3, 0.6)
-    # "sim:gestures=swipe_up,push" reaches us split at the comma.
-    split = SimulatedSkinSource.from_options({"gestures": "swipe_up", "push": ""})
-    assert split._scheduler.gestures == ["swipe_up", "push"]
+    # "sim?gestures=swipe_up,push": a comma separates gestures too.
+    listed = open_source("sim?gestures=swipe_up,push")
+    assert listed._scheduler.gestures == ["swipe_up", "push"]
 
 
 @pytest.mark.parametrize(
@@ -54,14 +55,14 @@ def test_from_options_parses_every_option():
     [
         ({"speed": "fast"}, "number"),
         ({"speed": "-1"}, ">= 0"),
-        ({"colour": "red"}, "unknown sim option"),
+        ({"colour": "red"}, "unknown setting 'colour'.*sim options: seed, speed"),
         ({"gestures": "wave"}, "unknown gesture"),
         ({"idle": "a-b"}, "idle"),
         ({"rows": "0"}, "at least one"),
     ],
 )
 def test_from_options_rejects_bad_options(options, message):
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(ConfigError, match=message):
         SimulatedSkinSource.from_options(options)
 
 
@@ -165,8 +166,6 @@ def _frames_for(source, seconds: float) -> np.ndarray:
 
 
 def test_outside_fingertips_press_where_they_are_put_and_lift_off():
-    from wovenskin.sim.live import Fingertip
-
     source = SimulatedSkinSource(seed=5, autonomous=False, lookahead_s=0.03)
     source.start()
     try:
@@ -202,21 +201,17 @@ def test_bad_outside_touches_are_refused(touches, message):
 
 @pytest.mark.parametrize("values", [(float("nan"), 1.0, 1.0), (1.0, 1.0, -0.5), (1.0, "a", 1.0)])
 def test_a_fingertip_must_be_finite_with_a_nonnegative_force(values):
-    from wovenskin.sim.live import Fingertip
-
     with pytest.raises(ValueError):
         Fingertip(*values)
 
 
 def test_the_lookahead_option_is_checked():
     assert open_source("sim:lookahead=0.05").lookahead_s == 0.05
-    with pytest.raises(ValueError, match="lookahead"):
+    with pytest.raises(ConfigError, match="lookahead"):
         open_source("sim:lookahead=0")
 
 
 def test_timestamped_touches_keep_their_timing_however_bunched_they_arrive():
-    from wovenskin.sim.live import Fingertip
-
     source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
     source.start()
     try:
@@ -239,16 +234,12 @@ def test_timestamped_touches_keep_their_timing_however_bunched_they_arrive():
 
 
 def test_a_touch_time_must_be_finite():
-    from wovenskin.sim.live import Fingertip
-
     source = SimulatedSkinSource(seed=1, autonomous=False)
     with pytest.raises(ValueError, match="finite"):
         source.set_touches({1: Fingertip(1.0, 1.0, 1.0)}, client_t=float("nan"))
 
 
 def test_a_sender_clock_that_jumps_ahead_cannot_hold_back_the_touch():
-    from wovenskin.sim.live import Fingertip
-
     source = SimulatedSkinSource(seed=3, autonomous=False, lookahead_s=0.03)
     source.start()
     try:
@@ -263,8 +254,6 @@ def test_a_sender_clock_that_jumps_ahead_cannot_hold_back_the_touch():
 
 
 def test_a_lifted_outside_fingertip_is_sensed_for_a_moment_then_goes():
-    from wovenskin.sim.live import Fingertip
-
     source = SimulatedSkinSource(seed=2, autonomous=False, lookahead_s=0.03)
     source.start()
     try:
@@ -287,8 +276,6 @@ def test_sparse_samples_are_reconstructed_as_a_path_not_jumps():
     """A busy page sends a stroke as a few samples, each arriving after the fingertip has
     already reached the previous one: the fingertip must still slide frame by frame at the
     drawn speed (a 10-20 mm jump between two frames looks like two fingers)."""
-    from wovenskin.sim.live import Fingertip
-
     source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
     rendered: list[np.ndarray] = []
     render = source._model.render
@@ -322,8 +309,6 @@ def test_sparse_samples_on_a_circle_follow_the_circle_not_its_chords():
     """A busy page sends a circle as a few samples 60 degrees apart: between them the
     fingertip must follow the curve through the last three samples (the chords of a
     hexagon cut 2.7 mm inside a 20 mm circle and read as two-finger swipes)."""
-    from wovenskin.sim.live import Fingertip
-
     source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
     rendered: list[np.ndarray] = []
     render = source._model.render
@@ -362,8 +347,6 @@ def test_sparse_samples_on_a_circle_follow_the_circle_not_its_chords():
 
 def test_sparse_samples_on_a_line_stay_on_the_line():
     """Three or more collinear sparse samples give a straight stroke, not a curve."""
-    from wovenskin.sim.live import Fingertip
-
     source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
     rendered: list[np.ndarray] = []
     render = source._model.render
@@ -420,8 +403,6 @@ def test_performances_are_rendered_in_short_pieces():
 def test_a_sparse_press_rises_smoothly_between_its_samples():
     """A busy page sends a mouse's rising press (push) as a few samples 100 ms apart: the
     fingertip's force must rise along the way, not in 20 ms steps."""
-    from wovenskin.sim.live import Fingertip
-
     source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
     rendered: list[np.ndarray] = []
     render = source._model.render

@@ -7,8 +7,9 @@ every ``every`` frames, idle windows skipped),
 :class:`~wovenskin.recognition.arbiter.Arbiter`, consumes ``LiveSkin`` blocks
 (:meth:`LivePipeline.feed`) or any conditioned frames (:meth:`LivePipeline.process`) and
 keeps the latest probabilities and the active command for views and the robot layer.
-A malformed input raises a one-line ``ValueError`` and leaves the pipeline's state as it
-was, so a live loop can report it and carry on.
+A malformed input raises a one-line ``ValueError`` (a :class:`~wovenskin.errors.DataError`
+where the pipeline checks it) and leaves the pipeline's state as it was, so a live loop
+can report it and carry on.
 
 :func:`run_pipeline` runs the whole pipeline on a labelled stream (a
 :class:`~wovenskin.recording.formats.LabelledStream`, or a labelled-stream ``.npz`` or
@@ -37,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from wovenskin.errors import ConfigError, DataError
 from wovenskin.recognition.arbiter import (
     Arbiter,
     ArbiterSettings,
@@ -44,13 +46,15 @@ from wovenskin.recognition.arbiter import (
     PerformingDetector,
     PerformingSettings,
 )
+from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+from wovenskin.recognition.shipped import resolve_model_dir
 from wovenskin.recognition.streaming import Recognizer, StreamingRecognizer, model_window
+from wovenskin.recording.files import read_stream
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.signal.conditioner import LiveConditioner
 from wovenskin.signal.config import ConditioningConfig
 
 if TYPE_CHECKING:
-    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
     from wovenskin.signal.live_skin import LiveBlock
 
 RESET = "reset"
@@ -71,14 +75,11 @@ class PipelineSettings:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.every, int) and self.every >= 1):
-            raise ValueError(f"every must be an integer >= 1, got {self.every!r}")
+            raise ConfigError(f"every must be an integer >= 1, got {self.every!r}")
 
 
 def load_recognizer(model: str | os.PathLike | None = None, threads: int = 1) -> OnnxRecognizer:
     """The ONNX recogniser of checkpoint directory ``model`` (None: the shipped default)."""
-    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
-    from wovenskin.recognition.shipped import resolve_model_dir
-
     return OnnxRecognizer(resolve_model_dir(model), threads=threads)
 
 
@@ -94,25 +95,35 @@ def arbiter_settings_for_model(recognizer: Any, **overrides: Any) -> ArbiterSett
     return ArbiterSettings(**values)
 
 
+def pipeline_settings_for_model(
+    recognizer: Any, every: int = 1, **arbiter_overrides: Any
+) -> PipelineSettings:
+    """Pipeline settings running the model on every ``every``-th window under the execution
+    rules of :func:`arbiter_settings_for_model` (its recommendation, then the overrides)."""
+    arbiter = arbiter_settings_for_model(recognizer, **arbiter_overrides)
+    return PipelineSettings(every=every, arbiter=arbiter)
+
+
 def conditioning_for_model(recognizer: Any) -> ConditioningConfig | None:
     """The conditioning settings a recogniser's checkpoint was trained with.
 
-    ``None`` when the recogniser's meta records no conditioning (a test double); ``ValueError``
-    when the checkpoint was not trained on conditioned streams (e.g. labelled captures).
+    ``None`` when the recogniser's meta records no conditioning (a test double); a
+    :class:`~wovenskin.errors.DataError` when the checkpoint was not trained on conditioned
+    streams (e.g. labelled captures) or records unusable settings.
     """
     meta = getattr(recognizer, "meta", None)
     if meta is None or not hasattr(meta, "conditioning"):
         return None
     stored = dict(meta.conditioning or {})
     if not stored or "capture_normalisation" in stored:
-        raise ValueError(
+        raise DataError(
             "the model was not trained on conditioned skin streams (its checkpoint records "
             "no conditioning settings), so it cannot run on a stream"
         )
     try:
         return ConditioningConfig.from_dict(stored)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"the model's conditioning settings are unusable: {exc}") from None
+        raise DataError(f"the model's conditioning settings are unusable: {exc}") from None
 
 
 def _pitches(recognizer: Any, metadata: dict | None = None) -> tuple[float, float] | None:
@@ -241,9 +252,9 @@ class LivePipeline:
         if signal.ndim == 2:
             signal, active = signal[np.newaxis], np.asarray(active)[np.newaxis]
         if t.shape[0] != signal.shape[0]:
-            raise ValueError(f"{t.shape[0]} frame times for {signal.shape[0]} frames")
+            raise DataError(f"{t.shape[0]} frame times for {signal.shape[0]} frames")
         if not np.isfinite(t).all():
-            raise ValueError("frame times must be finite")
+            raise DataError("frame times must be finite")
         predictions = self.streaming.push(signal, active, touched)
         performing = self.performing.update(signal.astype(np.float32, copy=False), active)
         touched = np.asarray(touched, dtype=bool).reshape(-1)
@@ -308,8 +319,6 @@ def load_stream(stream: LabelledStream | str | os.PathLike) -> LabelledStream:
     (the kind decided by content: :func:`wovenskin.recording.files.read_stream`)."""
     if isinstance(stream, LabelledStream):
         return stream
-    from wovenskin.recording.files import read_stream
-
     if not os.path.isfile(stream):
         raise FileNotFoundError(f"{stream}: no such file")
     return read_stream(stream, "the pipeline")
@@ -334,10 +343,10 @@ def run_pipeline(
     """
     stream = load_stream(stream)
     if block_frames is not None and not (isinstance(block_frames, int) and block_frames >= 1):
-        raise ValueError(f"block_frames must be an integer >= 1, got {block_frames!r}")
+        raise ConfigError(f"block_frames must be an integer >= 1, got {block_frames!r}")
     frames = np.asarray(stream.frames)
     if frames.ndim != 3:
-        raise ValueError(f"stream frames must be shaped (T, rows, cols), got {frames.shape}")
+        raise DataError(f"stream frames must be shaped (T, rows, cols), got {frames.shape}")
     n_frames, rows, cols = frames.shape
     rate = float(stream.sample_rate_hz)
     if conditioning is None:
@@ -349,13 +358,13 @@ def run_pipeline(
         recognizer, rows, cols, rate, conditioning, settings, _pitches(recognizer, stream.metadata)
     )
     if n_frames < conditioning.calibration_frames:
-        raise ValueError(
+        raise DataError(
             f"the stream has {n_frames} frames, fewer than the {conditioning.calibration_frames} "
             f"the calibration needs ({conditioning.calibration_s:g} s)"
         )
     times = np.asarray(stream.t, dtype=np.float64)
     if times.shape != (n_frames,):
-        raise ValueError(f"the stream has {n_frames} frames but {times.shape[0]} times")
+        raise DataError(f"the stream has {n_frames} frames but {times.shape[0]} times")
     warnings: list[str] = []
 
     def warn(message: str) -> None:

@@ -2,7 +2,8 @@
 sessions from their specs and wires the pipeline's stages together.  Every other package
 imports only the stages below it."""
 
+from wovenskin.runtime.pipeline import LiveChain, open_live_pipeline, open_live_skin
 from wovenskin.runtime.session import open_session
-from wovenskin.runtime.sources import open_source, parse_spec
+from wovenskin.runtime.sources import open_source
 
-__all__ = ["open_session", "open_source", "parse_spec"]
+__all__ = ["LiveChain", "open_live_pipeline", "open_live_skin", "open_session", "open_source"]

@@ -1,6 +1,6 @@
 """Opening a skin source from its spec: the one place that knows every source backend.
 
-Specs (the ``--skin`` option of every command):
+Specs (the ``--skin`` option of every command; parsed by :func:`wovenskin.specs.parse_spec`):
 
 - ``sim`` or ``sim:seed=3,speed=1`` -- the simulated skin with a simulated person
   performing gestures in real time (the default);
@@ -12,40 +12,43 @@ Specs (the ``--skin`` option of every command):
 
 from __future__ import annotations
 
-from urllib.parse import parse_qsl
+from typing import Any
 
 from wovenskin.recording.replay import ReplaySource
 from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.serial_source import SerialSkinSource
 from wovenskin.skin.source import SkinSource
+from wovenskin.specs import Spec, SpecError, parse_spec
+
+SOURCE_KINDS = "use sim, serial:PORT or replay:FILE"
 
 
-def parse_spec(spec: str) -> tuple[str, str, dict[str, str]]:
-    """Split ``kind:target?key=value&...`` (or ``sim:key=value,...``) into its parts."""
-    kind, _, rest = spec.partition(":")
-    kind = kind.strip().lower()
-    target, _, query = rest.partition("?")
-    options: dict[str, str] = dict(parse_qsl(query, keep_blank_values=True))
-    if kind == "sim" and "=" in target:
-        for item in target.split(","):
-            key, _, value = item.partition("=")
-            options[key.strip()] = value.strip()
-        target = ""
-    return kind, target, options
+def skin_spec(spec: str | Spec, **overrides: Any) -> Spec:
+    """``spec`` parsed (a :class:`Spec` as it is), with ``overrides`` replacing its options
+    (``None`` values left out); a :class:`SpecError` for a kind that is no skin source."""
+    if isinstance(spec, Spec):
+        given = {key: value for key, value in overrides.items() if value is not None}
+        parsed = parse_spec(spec.text, {**spec.options, **given}) if given else spec
+    else:
+        parsed = parse_spec(spec, overrides)
+    if parsed.kind not in ("sim", "serial", "replay"):
+        raise SpecError(parsed.text, f"is an unknown skin source: {SOURCE_KINDS}")
+    return parsed
 
 
-def open_source(spec: str = "sim", **overrides) -> SkinSource:
-    """Create (but do not start) the source named by ``spec``; see the module docstring."""
-    kind, target, options = parse_spec(spec)
-    options.update({k: str(v) for k, v in overrides.items() if v is not None})
-    if kind == "sim":
+def open_source(spec: str | Spec = "sim", **overrides: Any) -> SkinSource:
+    """Create (but do not start) the source named by ``spec``; see the module docstring.
+
+    ``overrides`` replace the spec's options of the same name (``None`` values are left
+    out).  A bad spec or option is one :class:`~wovenskin.errors.ConfigError` line."""
+    parsed = skin_spec(spec, **overrides)
+    options = dict(parsed.options)
+    if parsed.kind == "sim":
         return SimulatedSkinSource.from_options(options)
-    if kind == "serial":
-        if not target:
-            raise ValueError("serial source needs a port, e.g. serial:/dev/ttyACM0")
-        return SerialSkinSource.from_options(target, options)
-    if kind == "replay":
-        if not target:
-            raise ValueError("replay source needs a file, e.g. replay:stream.npz")
-        return ReplaySource.from_options(target, options)
-    raise ValueError(f"unknown skin source {spec!r}: use sim, serial:PORT or replay:FILE")
+    if not parsed.target:
+        example = "serial:/dev/ttyACM0" if parsed.kind == "serial" else "replay:stream.npz"
+        what = "port" if parsed.kind == "serial" else "file"
+        raise SpecError(parsed.text, f"names no {what}: e.g. {example}")
+    if parsed.kind == "serial":
+        return SerialSkinSource.from_options(parsed.target, options)
+    return ReplaySource.from_options(parsed.target, options)
