@@ -59,7 +59,7 @@ def test_dict_round_trip_through_json():
 
 def test_from_dict_fills_defaults_and_rejects_unknown_keys():
     assert ConditioningConfig.from_dict({"hold_s": 1.0}) == ConditioningConfig(hold_s=1.0)
-    with pytest.raises(ValueError, match="unknown conditioning setting.*smoothing_ms"):
+    with pytest.raises(ValueError, match="conditioning settings: unknown setting 'smoothing_ms'"):
         ConditioningConfig.from_dict({"smoothing_ms": 100})
 
 

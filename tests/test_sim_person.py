@@ -19,7 +19,7 @@ def test_sample_is_deterministic_and_round_trips():
     b = Person.sample(np.random.default_rng(3))
     assert a == b
     assert Person.from_dict(a.to_dict()) == a
-    with pytest.raises(ValueError, match="unknown person trait"):
+    with pytest.raises(ValueError, match="person traits: unknown setting 'speed'"):
         Person.from_dict({"speed": 1})
 
 

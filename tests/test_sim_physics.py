@@ -71,7 +71,7 @@ def test_sample_draws_every_parameter_within_its_range():
 def test_dict_round_trip_and_bad_values():
     skin = SkinPhysics.sample(np.random.default_rng(1))
     assert SkinPhysics.from_dict(skin.to_dict()) == skin
-    with pytest.raises(ValueError, match="unknown skin physics"):
+    with pytest.raises(ValueError, match="skin physics: unknown setting 'gain'"):
         SkinPhysics.from_dict({"gain": 1.0})
     with pytest.raises(ValueError, match="gain_pf"):
         SkinPhysics(gain_pf=-1.0)

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from wovenskin.errors import DataError
 from wovenskin.recording.documents import decode_document
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.recording.records import (
@@ -120,7 +121,7 @@ def stored_skin_info(stream: LabelledStream) -> SkinInfo:
     try:
         return skin_info_from_document(stored)
     except ValueError as exc:
-        raise ValueError(f"the stream's metadata 'info' is unusable: {exc}") from None
+        raise DataError(f"the stream's metadata 'info' is unusable: {exc}") from None
 
 
 def recording_from_labelled_stream(

@@ -77,13 +77,13 @@ def loads_json(text: str | bytes, what: str) -> Any:
     try:
         value = json.loads(text)
     except RecursionError:
-        raise ValueError(f"{what} is nested deeper than {MAX_JSON_DEPTH} levels") from None
+        raise DataError(f"{what} is nested deeper than {MAX_JSON_DEPTH} levels") from None
     except json.JSONDecodeError as exc:
-        raise ValueError(f"{what} is not valid JSON ({exc.msg} at character {exc.pos})") from None
+        raise DataError(f"{what} is not valid JSON ({exc.msg} at character {exc.pos})") from None
     except UnicodeDecodeError:
-        raise ValueError(f"{what} is not UTF-8 text") from None
+        raise DataError(f"{what} is not UTF-8 text") from None
     if _json_depth(value) > MAX_JSON_DEPTH:
-        raise ValueError(f"{what} is nested deeper than {MAX_JSON_DEPTH} levels")
+        raise DataError(f"{what} is nested deeper than {MAX_JSON_DEPTH} levels")
     return value
 
 

@@ -33,6 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wovenskin.errors import DataError
+from wovenskin.io import to_jsonable
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.signal.filters import StepGlitchFilter, median_of_three
 
@@ -66,16 +68,16 @@ class Calibration:
 
     def to_dict(self) -> dict:
         d = {
-            "baseline": self.baseline.tolist(),
-            "noise": self.noise.tolist(),
-            "dead": self.dead.tolist(),
-            "touched": self.touched.tolist(),
+            "baseline": self.baseline,
+            "noise": self.noise,
+            "dead": self.dead,
+            "touched": self.touched,
             "n_frames": int(self.n_frames),
             "message": self.message,
         }
         if self.step_noise is not None:
-            d["step_noise"] = self.step_noise.tolist()
-        return d
+            d["step_noise"] = self.step_noise
+        return to_jsonable(d)
 
     @classmethod
     def from_dict(cls, d: dict) -> Calibration:
@@ -91,11 +93,11 @@ class Calibration:
             if step_noise is not None:
                 step_noise = np.asarray(step_noise, dtype=np.float64)
         except KeyError as exc:
-            raise ValueError(f"calibration record lacks key {exc.args[0]!r}") from None
+            raise DataError(f"calibration record lacks key {exc.args[0]!r}") from None
         except (TypeError, ValueError) as exc:
-            raise ValueError(f"calibration record has a malformed field: {exc}") from None
+            raise DataError(f"calibration record has a malformed field: {exc}") from None
         if baseline.ndim != 2 or baseline.size == 0:
-            raise ValueError(f"calibration baseline must be a 2-D grid, got {baseline.shape}")
+            raise DataError(f"calibration baseline must be a 2-D grid, got {baseline.shape}")
         for name, arr in (
             ("noise", noise),
             ("dead", dead),
@@ -103,13 +105,13 @@ class Calibration:
             ("step_noise", baseline if step_noise is None else step_noise),
         ):
             if arr.shape != baseline.shape:
-                raise ValueError(
+                raise DataError(
                     f"calibration {name} has shape {arr.shape}, baseline has {baseline.shape}"
                 )
         if not (np.isfinite(baseline).all() and np.isfinite(noise).all()):
-            raise ValueError("calibration baseline and noise must be finite")
+            raise DataError("calibration baseline and noise must be finite")
         if step_noise is not None and not np.isfinite(step_noise).all():
-            raise ValueError("calibration step_noise must be finite")
+            raise DataError("calibration step_noise must be finite")
         return cls(baseline, noise, dead, touched, n_frames, message, step_noise)
 
 
@@ -121,20 +123,20 @@ def calibrate(raw: np.ndarray, config: ConditioningConfig) -> Calibration:
     """
     raw = np.asarray(raw)
     if raw.ndim != 3 or raw.shape[1] < 1 or raw.shape[2] < 1:
-        raise ValueError(f"calibration needs frames shaped (N, rows, cols), got {raw.shape}")
+        raise DataError(f"calibration needs frames shaped (N, rows, cols), got {raw.shape}")
     if not (np.issubdtype(raw.dtype, np.number) and not np.iscomplexobj(raw)):
-        raise ValueError(f"calibration needs real numeric frames, got dtype {raw.dtype}")
+        raise DataError(f"calibration needs real numeric frames, got dtype {raw.dtype}")
     n_frames = raw.shape[0]
     need = config.calibration_frames
     if n_frames < need:
-        raise ValueError(
+        raise DataError(
             f"calibration needs at least {need} frames ({config.calibration_s:g} s at "
             f"{config.sample_rate_hz:g} Hz), got {n_frames}"
         )
     x = raw.astype(np.float64)
     finite = np.isfinite(x)
     if not finite.any():
-        raise ValueError("calibration frames are all NaN/inf: is the skin connected?")
+        raise DataError("calibration frames are all NaN/inf: is the skin connected?")
 
     with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)

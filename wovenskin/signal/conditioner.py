@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wovenskin.errors import DataError
 from wovenskin.signal.baseline import BaselineTracker
 from wovenskin.signal.calibration import Calibration, calibrate, glitch_threshold
 from wovenskin.signal.config import ConditioningConfig
@@ -279,7 +280,7 @@ def condition_recording(
     """
     raw = np.asarray(raw)
     if raw.ndim != 3:
-        raise ValueError(f"a recording must be shaped (N, rows, cols), got {raw.shape}")
+        raise DataError(f"a recording must be shaped (N, rows, cols), got {raw.shape}")
     calibration = calibrate(raw[: config.calibration_frames], config)
     conditioner = Conditioner(calibration, config)
     return calibration, conditioner.process(raw)

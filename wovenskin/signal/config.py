@@ -11,7 +11,10 @@ multiples of a channel's calibrated noise, i.e. the standard deviation of its co
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
+
+from wovenskin.errors import ConfigError
+from wovenskin.settings import from_dict
 
 
 @dataclass(frozen=True)
@@ -217,7 +220,7 @@ class ConditioningConfig:
         for name in positive:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+                raise ConfigError(f"{name} must be a positive finite number, got {value!r}")
         non_negative = (
             "debounce_on_s",
             "debounce_off_s",
@@ -239,46 +242,52 @@ class ConditioningConfig:
         for name in non_negative:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a non-negative finite number, got {value!r}")
+                raise ConfigError(f"{name} must be a non-negative finite number, got {value!r}")
         if not (isinstance(self.recover_blocks, int) and self.recover_blocks >= 1):
-            raise ValueError(f"recover_blocks must be an integer >= 1, got {self.recover_blocks!r}")
+            raise ConfigError(
+                f"recover_blocks must be an integer >= 1, got {self.recover_blocks!r}"
+            )
         if self.common_mode_quantile >= 1:
-            raise ValueError("common_mode_quantile must be below 1")
+            raise ConfigError("common_mode_quantile must be below 1")
         if 0 < self.fast_on_factor < 1:
-            raise ValueError(f"fast_on_factor must be 0 (off) or >= 1, got {self.fast_on_factor!r}")
+            raise ConfigError(
+                f"fast_on_factor must be 0 (off) or >= 1, got {self.fast_on_factor!r}"
+            )
         if not isinstance(self.seeded_blobs, bool):
-            raise ValueError(f"seeded_blobs must be true or false, got {self.seeded_blobs!r}")
+            raise ConfigError(f"seeded_blobs must be true or false, got {self.seeded_blobs!r}")
         for name in ("spike_filter", "glitch_filter"):
             if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
+                raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
         if not 0 <= self.off_peak_fraction <= self.on_peak_fraction < 1:
-            raise ValueError(
+            raise ConfigError(
                 "peak fractions need 0 <= off_peak_fraction <= on_peak_fraction < 1, got "
                 f"{self.off_peak_fraction!r} and {self.on_peak_fraction!r}"
             )
         if not isinstance(self.common_drift, bool):
-            raise ValueError(f"common_drift must be true or false, got {self.common_drift!r}")
+            raise ConfigError(f"common_drift must be true or false, got {self.common_drift!r}")
         if self.common_drift_min_fraction > 1:
-            raise ValueError("common_drift_min_fraction must be at most 1")
+            raise ConfigError("common_drift_min_fraction must be at most 1")
         if not 0 <= self.release_fraction <= self.rearm_fraction < 1:
-            raise ValueError(
+            raise ConfigError(
                 "need 0 <= release_fraction <= rearm_fraction < 1, got "
                 f"{self.release_fraction!r} and {self.rearm_fraction!r}"
             )
         if self.contact_off_sigma >= self.contact_on_sigma:
-            raise ValueError("contact_off_sigma must be below contact_on_sigma (hysteresis)")
+            raise ConfigError("contact_off_sigma must be below contact_on_sigma (hysteresis)")
         if self.min_release_rel >= self.min_contact_rel:
-            raise ValueError("min_release_rel must be below min_contact_rel (hysteresis)")
+            raise ConfigError("min_release_rel must be below min_contact_rel (hysteresis)")
         if self.connectivity not in (4, 8):
-            raise ValueError(f"connectivity must be 4 or 8, got {self.connectivity!r}")
+            raise ConfigError(f"connectivity must be 4 or 8, got {self.connectivity!r}")
         if self.max_drop_rel >= 1:
-            raise ValueError("max_drop_rel must be below 1 (a reading cannot drop below zero)")
+            raise ConfigError("max_drop_rel must be below 1 (a reading cannot drop below zero)")
         if self.full_scale is not None and not (
             isinstance(self.full_scale, int | float) and math.isfinite(self.full_scale)
         ):
-            raise ValueError(f"full_scale must be a finite number or None, got {self.full_scale!r}")
+            raise ConfigError(
+                f"full_scale must be a finite number or None, got {self.full_scale!r}"
+            )
         if self.calibration_frames < self.window_frames + 10:
-            raise ValueError(
+            raise ConfigError(
                 f"calibration_s={self.calibration_s:g} is too short: it needs at least "
                 f"{self.window_frames + 10} frames (smoothing window + 10) at "
                 f"{self.sample_rate_hz:g} Hz"
@@ -374,9 +383,5 @@ class ConditioningConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> ConditioningConfig:
-        """Build from a dict; missing keys take defaults, unknown keys are an error."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"unknown conditioning setting(s): {', '.join(unknown)}")
-        return cls(**d)
+        """Build from a dict; missing keys take defaults, unknown keys are a ConfigError."""
+        return from_dict(cls, d, "conditioning settings")

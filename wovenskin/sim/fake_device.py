@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from wovenskin.errors import ConfigError
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, ROW_MAJOR, ChannelOrder, SkinLayout
 from wovenskin.skin.messages import (
     AckMessage,
@@ -134,11 +135,11 @@ class FakeSkinDevice:
         on_start: Callable[[], None] | None = None,
     ) -> None:
         if fmt not in ("binary", "text"):
-            raise ValueError(f"format must be 'binary' or 'text', got {fmt!r}")
+            raise ConfigError(f"format must be 'binary' or 'text', got {fmt!r}")
         if fmt == "text" and dtype != SampleDtype.F32:
-            raise ValueError("text lines carry decimal values: use dtype F32 with fmt='text'")
+            raise ConfigError("text lines carry decimal values: use dtype F32 with fmt='text'")
         if not rate_hz > 0:
-            raise ValueError(f"rate must be positive, got {rate_hz}")
+            raise ConfigError(f"rate must be positive, got {rate_hz}")
         self.layout = layout or SkinLayout()
         self.order = order
         self.dtype = SampleDtype(dtype)
@@ -552,9 +553,9 @@ def run_fake_device(
     from wovenskin.sim.stream import simulate_stream
 
     if fmt not in ("binary", "text"):
-        raise ValueError(f"format must be 'binary' or 'text', got {fmt!r}")
+        raise ConfigError(f"format must be 'binary' or 'text', got {fmt!r}")
     if seconds is not None and not seconds > 0:
-        raise ValueError(f"seconds must be positive, got {seconds}")
+        raise ConfigError(f"seconds must be positive, got {seconds}")
     layout = layout or SkinLayout()
     length = loop_s if seconds is None else min(loop_s, max(seconds, 2.0))
     stream = simulate_stream(length, seed, layout=layout)

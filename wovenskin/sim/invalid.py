@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wovenskin.errors import ConfigError
 from wovenskin.gestures import GESTURE_NAMES, INVALID
 from wovenskin.sim import spec
 from wovenskin.sim.motion import (
@@ -81,7 +82,7 @@ def perform_invalid(
     if kind is None:
         kind = str(rng.choice(INVALID_KINDS))
     if kind not in _PERFORMERS:
-        raise ValueError(f"unknown invalid kind {kind!r}; known: {', '.join(INVALID_KINDS)}")
+        raise ConfigError(f"unknown invalid kind {kind!r}; known: {', '.join(INVALID_KINDS)}")
     for _ in range(_ATTEMPTS):
         performance = _PERFORMERS[kind](person, rng, layout, sample_rate_hz)
         for c in performance.contacts:

@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from wovenskin.io import to_jsonable
 from wovenskin.sim import spec
 from wovenskin.sim.person import Trial
 from wovenskin.sim.physics import ContactTrack, NoiseBurst
@@ -104,17 +105,9 @@ class Performance:
             "invalid_kind": self.invalid_kind,
             "phases": self.phases.to_dict(),
             "fingers": [c.finger or c.kind for c in self.contacts],
-            "params": {k: _plain(v) for k, v in self.params.items()},
+            "params": to_jsonable(self.params),
             "bursts": [b.to_dict() for b in self.bursts],
         }
-
-
-def _plain(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return value
 
 
 # -- profiles ----------------------------------------------------------------------------------

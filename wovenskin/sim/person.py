@@ -14,10 +14,12 @@ up (toward row 0), 90 = to the right.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from wovenskin.errors import ConfigError
+from wovenskin.settings import from_dict
 from wovenskin.sim import spec
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
@@ -88,12 +90,12 @@ class Person:
 
     def __post_init__(self) -> None:
         if self.handedness not in ("right", "left"):
-            raise ValueError(f"handedness must be 'right' or 'left', got {self.handedness!r}")
+            raise ConfigError(f"handedness must be 'right' or 'left', got {self.handedness!r}")
         for name in ("pace", "reach", "location_u", "location_v", "posture_variety"):
             if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"person {name} must lie in [0, 1], got {getattr(self, name)}")
+                raise ConfigError(f"person {name} must lie in [0, 1], got {getattr(self, name)}")
         if self.force_n <= 0 or self.press_ratio < 1.0:
-            raise ValueError("person force must be positive and press ratio >= 1")
+            raise ConfigError("person force must be positive and press ratio >= 1")
 
     @classmethod
     def sample(cls, rng: np.random.Generator) -> Person:
@@ -144,11 +146,8 @@ class Person:
 
     @classmethod
     def from_dict(cls, d: dict) -> Person:
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"unknown person trait(s): {', '.join(unknown)}")
-        return cls(**d)
+        """The person :meth:`to_dict` wrote; one :class:`ConfigError` line naming a bad key."""
+        return from_dict(cls, d, "person traits")
 
 
 _FINGER_FORCE = {"thumb": 1.15, "index": 1.0, "middle": 0.95, "ring": 0.8, "little": 0.7}

@@ -45,6 +45,8 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt
 from scipy.signal import lfilter
 
+from wovenskin.errors import ConfigError
+from wovenskin.settings import from_dict
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
 
 
@@ -174,10 +176,10 @@ class SkinPhysics:
         for f in fields(self):
             value = getattr(self, f.name)
             if not math.isfinite(value) or (value < 0 and f.metadata["range"][0] >= 0):
-                raise ValueError(f"skin physics {f.name} must be finite and >= 0, got {value}")
+                raise ConfigError(f"skin physics {f.name} must be finite and >= 0, got {value}")
         for name in ("c0_pf", "gain_pf", "pressure_scale_kpa", "mechanical_tau_s", "mains_hz"):
             if getattr(self, name) <= 0:
-                raise ValueError(f"skin physics {name} must be > 0")
+                raise ConfigError(f"skin physics {name} must be > 0")
 
     @classmethod
     def sample(cls, rng: np.random.Generator) -> SkinPhysics:
@@ -228,11 +230,8 @@ class SkinPhysics:
 
     @classmethod
     def from_dict(cls, d: dict) -> SkinPhysics:
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"unknown skin physics parameter(s): {', '.join(unknown)}")
-        return cls(**{k: float(v) for k, v in d.items()})
+        """The skin :meth:`to_dict` wrote; one :class:`ConfigError` line naming a bad key."""
+        return from_dict(cls, d, "skin physics")
 
     @classmethod
     def describe(cls) -> str:
@@ -423,9 +422,9 @@ class SkinModel:
         supersample: int = 8,
     ) -> None:
         if sample_rate_hz <= 0:
-            raise ValueError(f"sample rate must be positive, got {sample_rate_hz}")
+            raise ConfigError(f"sample rate must be positive, got {sample_rate_hz}")
         if supersample < 1:
-            raise ValueError(f"supersample must be >= 1, got {supersample}")
+            raise ConfigError(f"supersample must be >= 1, got {supersample}")
         self.physics = physics if physics is not None else SkinPhysics()
         self.layout = layout if layout is not None else SkinLayout()
         self.sample_rate_hz = float(sample_rate_hz)

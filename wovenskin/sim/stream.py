@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wovenskin.errors import ConfigError
 from wovenskin.gestures import GESTURE_NAMES, INVALID, check_name
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.sim.invalid import INVALID_KINDS
@@ -32,9 +33,9 @@ def parse_request(request: str) -> tuple[str, str | None]:
     name, _, kind = request.strip().partition(":")
     check_name(name)
     if kind and name != INVALID:
-        raise ValueError(f"only 'invalid' takes a sub-kind, got {request!r}")
+        raise ConfigError(f"only 'invalid' takes a sub-kind, got {request!r}")
     if kind and kind not in INVALID_KINDS:
-        raise ValueError(f"unknown invalid kind {kind!r}; known: {', '.join(INVALID_KINDS)}")
+        raise ConfigError(f"unknown invalid kind {kind!r}; known: {', '.join(INVALID_KINDS)}")
     return name, kind or None
 
 
@@ -55,12 +56,12 @@ class EventScheduler:
         for g in gestures:
             parse_request(g)
         if not 0.0 <= invalid_fraction <= 1.0:
-            raise ValueError(f"invalid_fraction must lie in [0, 1], got {invalid_fraction}")
+            raise ConfigError(f"invalid_fraction must lie in [0, 1], got {invalid_fraction}")
         low, high = (float(v) for v in idle_s)
         if not 0.0 <= low <= high:
-            raise ValueError(f"idle_s must be (low, high) with 0 <= low <= high, got {idle_s}")
+            raise ConfigError(f"idle_s must be (low, high) with 0 <= low <= high, got {idle_s}")
         if not gestures and invalid_fraction < 1.0:
-            raise ValueError("no gestures to perform: give gestures or set invalid_fraction=1")
+            raise ConfigError("no gestures to perform: give gestures or set invalid_fraction=1")
         self.rng = rng
         self.person = person
         self.layout = layout
@@ -130,9 +131,9 @@ def simulate_stream(
     not end before the stream does are left out (the stream ends contact-free).
     """
     if not np.isfinite(seconds) or seconds <= 0:
-        raise ValueError(f"stream length must be positive, got {seconds}")
+        raise ConfigError(f"stream length must be positive, got {seconds}")
     if sample_rate_hz <= 0:
-        raise ValueError(f"sample rate must be positive, got {sample_rate_hz}")
+        raise ConfigError(f"sample rate must be positive, got {sample_rate_hz}")
     layout = layout if layout is not None else SkinLayout()
     rng = np.random.default_rng(seed)
     physics = physics if physics is not None else SkinPhysics.sample(rng)

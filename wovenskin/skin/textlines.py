@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from wovenskin.errors import ConfigError
 from wovenskin.skin.layout import ROW_MAJOR, ChannelOrder, SkinLayout
 from wovenskin.skin.messages import BytesLike, DecodeError
 
@@ -44,7 +45,7 @@ class TextLineDecoder:
         max_line_bytes: int | None = None,
     ) -> None:
         if skip_columns < 0:
-            raise ValueError(f"skip_columns must be >= 0, got {skip_columns}")
+            raise ConfigError(f"skip_columns must be >= 0, got {skip_columns}")
         if separator is not None and separator.strip() == "" and separator != "\t":
             separator = None  # whitespace: str.split() handles any run of blanks
         self.layout = layout
