@@ -33,7 +33,8 @@ command stream is silent for longer than ``watchdog_s``; :meth:`SafetyLayer.emer
 (the stop key) latches like them until :meth:`SafetyLayer.clear_stop`. Every safety stop
 is a :class:`StopEvent` with a one-line reason, also logged through :mod:`logging`; the
 caller's own :meth:`SafetyLayer.stop` is a plain stop and records nothing. See
-``docs/safety.md``.
+``docs/safety.md``. The limits, stop records and the cap and box rules are
+:mod:`.safety_limits`'; the planning of joint moves is :mod:`.joint_moves`'.
 """
 
 from __future__ import annotations
@@ -42,11 +43,12 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from wovenskin.control.arm_model import ArmModel
+from wovenskin.control.joint_moves import Jacobian, Kinematics, capped_fraction, path_leaves_box
+from wovenskin.control.safety_limits import SafetyLimits, StopEvent, cap_speeds, keep_in_box
 from wovenskin.robots.base import (
     N_JOINTS,
     JointLimits,
@@ -58,68 +60,11 @@ from wovenskin.robots.base import (
     finite_vector,
 )
 
+__all__ = ["SafetyLayer", "SafetyLimits", "StopEvent", "cap_speeds", "keep_in_box"]
+
 log = logging.getLogger(__name__)
 
-Jacobian = Callable[[np.ndarray], np.ndarray]
-Kinematics = Callable[[np.ndarray], np.ndarray]  # q -> 4x4 base <- tcp
-
-
-def _vector(values: object, size: int) -> np.ndarray:
-    return np.asarray(values, dtype=float).reshape(size).copy()
-
-
-@dataclass(frozen=True)
-class SafetyLimits:
-    """What the safety layer enforces (SI units, base frame)."""
-
-    max_linear_speed: float = 0.25  # m/s, TCP
-    max_angular_speed: float = math.radians(60.0)  # rad/s
-    workspace_lower: np.ndarray = field(default_factory=lambda: np.array([-0.8, -0.8, 0.05]))
-    workspace_upper: np.ndarray = field(default_factory=lambda: np.array([0.8, 0.8, 1.2]))
-    joint_margin: float = math.radians(5.0)  # rad, kept clear of every joint limit
-    watchdog_s: float = 0.1  # longest silence of the skin or command stream
-    box_horizon_s: float = 0.1  # the TCP must stay in the box this far ahead
-    joint_horizon_s: float = 0.02  # joints are checked this far ahead
-    arm_reach: float = 1.2  # m, bounds any joint axis's distance to the TCP (no Jacobian)
-    assumed_stop_time_s: float = 0.3  # s, to rest after stop() when a backend declares none
-
-    def __post_init__(self) -> None:
-        lower = _vector(self.workspace_lower, 3)
-        upper = _vector(self.workspace_upper, 3)
-        if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
-            raise ValueError("workspace box bounds must be finite")
-        if not np.all(lower < upper):
-            raise ValueError("workspace box: every lower bound must be below its upper bound")
-        object.__setattr__(self, "workspace_lower", lower)
-        object.__setattr__(self, "workspace_upper", upper)
-        for name in ("max_linear_speed", "max_angular_speed", "watchdog_s", "box_horizon_s",
-                     "joint_horizon_s", "arm_reach", "assumed_stop_time_s"):  # fmt: skip
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} must be a positive number, got {value!r}")
-        if not (math.isfinite(self.joint_margin) and self.joint_margin >= 0.0):
-            raise ValueError(f"joint_margin must be >= 0, got {self.joint_margin!r}")
-
-    def in_box(self, position: np.ndarray, tolerance: float = 0.0) -> bool:
-        """Whether ``position`` lies in the workspace box (grown by ``tolerance``)."""
-        p = np.asarray(position, dtype=float)
-        lower, upper = self.workspace_lower - tolerance, self.workspace_upper + tolerance
-        return bool(np.all(p >= lower) and np.all(p <= upper))
-
-
-@dataclass(frozen=True)
-class StopEvent:
-    """One safety stop: when (the layer's clock), why (one line) and which check fired.
-
-    ``source`` is one of ``"command"`` (a bad twist), ``"skin watchdog"``,
-    ``"command watchdog"`` and ``"emergency"`` -- these latch until
-    :meth:`SafetyLayer.clear_stop` -- or ``"joint limit"``, ``"workspace"`` and ``"speed"``,
-    which stop or refuse one command and leave the arm free to move away.
-    """
-
-    t: float
-    reason: str
-    source: str
+MOVE_SPEED_TOLERANCE = 1.02  # a running move is stopped above 102 % of the speed cap
 
 
 class SafetyLayer(Robot):
@@ -292,7 +237,7 @@ class SafetyLayer(Robot):
                 "joint limit",
             )
         start = np.asarray(self.robot.state().q, dtype=float)
-        leaves = self._path_leaves_box(start, goal)
+        leaves = path_leaves_box(self._fk, start, goal, self.limits)
         if leaves is not None:
             where = ", ".join(f"{v:.3f}" for v in leaves)
             self._refuse(
@@ -301,7 +246,8 @@ class SafetyLayer(Robot):
             )
         self._sent = np.zeros(6)
         self._in_move = False
-        self.robot.move_to_joints(goal, self._capped_fraction(start, goal, fraction, limits))
+        capped = capped_fraction(self._jacobian, start, goal, fraction, limits, self.limits)
+        self.robot.move_to_joints(goal, capped)
         self._in_move = True
 
     def move_to_pose(self, pose: Pose, speed: float = 0.05) -> None:
@@ -558,84 +504,6 @@ class SafetyLayer(Robot):
             self._record(now, *problem)
             self._in_move = False
             self.robot.stop()
-
-    def _path_leaves_box(self, start: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
-        """The first TCP position outside the box along the straight joint path, if any."""
-        if self._fk is None:
-            return None
-        for s in np.linspace(0.0, 1.0, PATH_SAMPLES):
-            position = np.asarray(self._fk(start + s * (goal - start)), dtype=float)[:3, 3]
-            if s > 0.0 and not self.limits.in_box(position):
-                return position
-        return None
-
-    def _capped_fraction(
-        self, start: np.ndarray, goal: np.ndarray, fraction: float, limits: JointLimits
-    ) -> float:
-        """Slow a joint move so its TCP speeds stay under the caps.
-
-        The backend is assumed to move the joints in step along the straight joint path, the
-        busiest joint at ``fraction`` of its speed limit. With a Jacobian the TCP speeds are
-        sampled along the path; without one they are bounded by ``arm_reach`` times the sum
-        of the joint speeds (and the sum itself for the angular speed).
-        """
-        delta = goal - np.asarray(start, dtype=float)
-        moving = np.abs(delta) > 1e-12
-        if not np.any(moving):
-            return fraction
-        path_rate = fraction * float(np.min(limits.max_speed[moving] / np.abs(delta[moving])))
-        if self._jacobian is None:
-            angular = float(np.sum(np.abs(delta))) * path_rate
-            linear = self.limits.arm_reach * angular
-        else:
-            linear = angular = 0.0
-            for s in np.linspace(0.0, 1.0, PATH_SAMPLES):
-                jac = np.asarray(self._jacobian(start + s * delta), dtype=float)
-                linear = max(linear, float(np.linalg.norm(jac[:3] @ delta)) * path_rate)
-                angular = max(angular, float(np.linalg.norm(jac[3:] @ delta)) * path_rate)
-        ratio = max(linear / self.limits.max_linear_speed, angular / self.limits.max_angular_speed)
-        if ratio <= CAP_SAFETY_FACTOR:
-            return fraction
-        return fraction * CAP_SAFETY_FACTOR / ratio
-
-
-CAP_SAFETY_FACTOR = 0.9  # joint moves plan for 90 % of the caps (the path is sampled)
-PATH_SAMPLES = 21  # points checked along a joint move
-MOVE_SPEED_TOLERANCE = 1.02  # a running move is stopped above 102 % of the speed cap
-
-
-def cap_speeds(twist: np.ndarray, max_linear: float, max_angular: float) -> np.ndarray:
-    """``twist`` with each part scaled down (direction kept) to its cap; huge values are safe."""
-    out = np.asarray(twist, dtype=float).copy()
-    for part, cap in ((slice(0, 3), max_linear), (slice(3, 6), max_angular)):
-        vector = out[part]
-        largest = float(np.max(np.abs(vector)))
-        if largest == 0.0:
-            continue
-        unit = vector / largest  # no overflow in the norm below
-        norm = float(np.linalg.norm(unit))
-        if norm * largest > cap:
-            out[part] = unit * (cap / norm)
-    return out
-
-
-def keep_in_box(
-    velocity: np.ndarray,
-    position: np.ndarray,
-    limits: SafetyLimits,
-    horizon: float,
-    standoff: float = 0.0,
-) -> np.ndarray:
-    """Reduce each component of ``velocity`` so ``position + velocity * horizon`` stays in
-    the workspace box less ``standoff`` (m); outside the box only motion back toward it is
-    left. Within ``standoff`` of a wall the component is turned back inward, at most at
-    ``standoff / horizon``: a backend that drifts off the commanded direction by that much
-    (its tracking error) is pushed back before it reaches the wall."""
-    p = np.asarray(position, dtype=float)
-    push = standoff / horizon
-    room_up = np.maximum((limits.workspace_upper - standoff - p) / horizon, -push)
-    room_down = np.minimum((limits.workspace_lower + standoff - p) / horizon, push)
-    return np.clip(np.asarray(velocity, dtype=float), room_down, room_up)
 
 
 def _silent(last: float | None, now: float, limit: float) -> bool:
