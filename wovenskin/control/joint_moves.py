@@ -1,5 +1,4 @@
-"""Point-to-point joint moves under the safety caps: where the TCP path leaves the box,
-and how much to slow a move so its TCP speeds stay under the caps."""
+"""Joint moves under the safety caps: where the TCP path leaves the box, how much to slow one."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""What the safety layer enforces (:class:`SafetyLimits`), its stop records, and the two
-pure rules it applies to every twist: speed caps and the workspace box."""
+"""Safety limits, stop records, and the speed-cap and workspace-box rules every twist obeys."""
 
 from __future__ import annotations
 
