@@ -29,11 +29,10 @@ from rich.text import Text
 
 from wovenskin import __version__
 from wovenskin.gestures import INVALID
-from wovenskin.recording.native import RecordingWriter
-from wovenskin.runtime.sources import open_source
+from wovenskin.runtime.pipeline import open_live_skin
 from wovenskin.signal.config import ConditioningConfig
-from wovenskin.signal.live_skin import LiveSkin
 from wovenskin.sim.live import SimulatedSkinSource
+from wovenskin.skin.frames import SkinInfo
 from wovenskin.ui.terminal import heatmap, live_screen
 
 INVALID_PROMPT = "touch WITHOUT a gesture: tap, palm, grasp the link, brush past, 3-4 fingers"
@@ -115,25 +114,18 @@ def run_record_session(
 ) -> SessionSummary:
     """Run a guided recording session into ``out`` and return what was recorded."""
     console = console or Console()
-    source = open_source(skin)
-    info = source.info
-    provenance = {
-        "participant": "anonymous",
-        **(provenance or {}),
-        "skin_source": skin,
-        "started_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-        "host": platform.node(),
-        "user": _user(),
-        "wovenskin_version": __version__,
-        "command": " ".join(sys.argv),
-    }
-    if not provenance.get("skin_id"):
-        provenance["skin_id"] = info.device_id or skin
     messages: list[str] = []
-    live_skin_config = config or ConditioningConfig(sample_rate_hz=info.sample_rate_hz)
-    settings = {"conditioning": live_skin_config.to_dict(), "plan": asdict(plan)}
-    writer = RecordingWriter(out, info, provenance, settings, overwrite=overwrite)
-    live_skin = LiveSkin(source, live_skin_config, on_message=messages.append, recorder=writer)
+    chain = open_live_skin(
+        skin,
+        conditioning=config,
+        record=out,
+        overwrite=overwrite,
+        provenance=lambda info: _provenance(skin, info, provenance),
+        recorded={"plan": asdict(plan)},
+        on_message=messages.append,
+    )
+    source, live_skin, writer = chain.source, chain.live_skin, chain.recorder
+    assert writer is not None
     summary = SessionSummary(Path(out), 0)
     perform = getattr(source, "perform", None)
     if isinstance(source, SimulatedSkinSource):
@@ -152,6 +144,23 @@ def run_record_session(
         summary.frames = live_skin.stats().good_frames
         writer.close()
     return summary
+
+
+def _provenance(skin: str, info: SkinInfo, given: dict | None) -> dict:
+    """Who recorded what, where and with which software (``given`` first)."""
+    provenance = {
+        "participant": "anonymous",
+        **(given or {}),
+        "skin_source": skin,
+        "started_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "host": platform.node(),
+        "user": _user(),
+        "wovenskin_version": __version__,
+        "command": " ".join(sys.argv),
+    }
+    if not provenance.get("skin_id"):
+        provenance["skin_id"] = info.device_id or skin
+    return provenance
 
 
 class _Abort(Exception):

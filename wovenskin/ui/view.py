@@ -17,9 +17,10 @@ from pathlib import Path
 import numpy as np
 from rich.console import Console
 
-from wovenskin.runtime.sources import open_source
+from wovenskin.runtime.pipeline import open_live_skin
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.signal.live_skin import LiveSkin, RateMeter
+from wovenskin.ui.run_view import QUIT_KEYS, terminal_keys
 from wovenskin.ui.terminal import heatmap, live_screen, skin_panel, status_table
 
 
@@ -70,12 +71,9 @@ def run_view(
     ``snapshot``: save the last screen drawn as an SVG file when the view ends.
     ``read_keys`` returns the keys pressed since its last call (default: the terminal's).
     """
-    from wovenskin.ui.run_view import QUIT_KEYS, terminal_keys
-
     console = console or Console()
-    source = open_source(skin)
     messages: list[str] = []
-    live_skin = LiveSkin(source, config, on_message=messages.append)
+    live_skin = open_live_skin(skin, conditioning=config, on_message=messages.append).live_skin
     display_rate = RateMeter()
     scale = AutoScale()
     last_frame = None

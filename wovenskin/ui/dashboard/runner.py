@@ -1,10 +1,10 @@
 """The dashboard's engine: a control session on its own thread, fed by the page.
 
-:class:`DashboardRunner` opens a session (the same :func:`~wovenskin.control.session.
-open_session` wiring as ``wovenskin run``), steps it on a thread at the skin's full rate
-(200 Hz recognition and control) and, at the page's rate (30-60 Hz), stores the newest
-:func:`~wovenskin.ui.dashboard.snapshot.build_snapshot` for the server to send: latest
-only, so a slow browser never slows control.  Page commands (:meth:`submit`) are queued
+:class:`DashboardRunner` opens a session (the same
+:func:`~wovenskin.runtime.session.open_session` wiring as ``wovenskin run``), steps it on
+a thread at the skin's full rate (200 Hz recognition and control) and, at the page's rate
+(30-60 Hz), stores the newest :func:`~wovenskin.ui.dashboard.snapshot.build_snapshot`
+for the server to send: latest only, so a slow browser never slows control.  Page commands (:meth:`submit`) are queued
 and carried out on the session thread between steps; virtual touches (:meth:`touch`) go
 straight to the simulated skin's physics, never to the recogniser or the robot.
 
@@ -24,9 +24,12 @@ from pathlib import Path
 from typing import Any
 
 from wovenskin.control.session import ControlSession
+from wovenskin.errors import ConfigError
 from wovenskin.gestures import CLASS_NAMES
-from wovenskin.runtime.sources import parse_spec
+from wovenskin.runtime.sources import skin_spec
 from wovenskin.signal.live_skin import RateMeter
+from wovenskin.sim.live import SimulatedSkinSource
+from wovenskin.skin.ports import list_ports
 from wovenskin.ui.dashboard.scene import ArmScene
 from wovenskin.ui.dashboard.snapshot import Timeline, TimelineEntry, build_snapshot
 
@@ -82,7 +85,7 @@ class DashboardRunner:
         record_dir: str | Path = "recordings",
     ) -> None:
         if not 1.0 <= ui_rate_hz <= 120.0:
-            raise ValueError(f"page update rate must be 1-120 Hz, got {ui_rate_hz}")
+            raise ConfigError(f"page update rate must be 1-120 Hz, got {ui_rate_hz}")
         self._opener = opener
         self.skin_spec = skin
         self.robot_spec = robot
@@ -159,7 +162,7 @@ class DashboardRunner:
     def submit(self, command: dict) -> None:
         """Queue a page command (``{"cmd": name, ...}``) for the session thread."""
         if not isinstance(command, dict) or command.get("cmd") not in COMMANDS:
-            raise ValueError(f"unknown dashboard command: {str(command)[:80]}")
+            raise ConfigError(f"unknown dashboard command: {str(command)[:80]}")
         self._commands.put(command)
 
     def note(self, text: str) -> None:
@@ -171,7 +174,7 @@ class DashboardRunner:
         ``client_t`` on the page's clock when given (see ``SimulatedSkinSource.set_touches``)."""
         source = self._sim_source()
         if source is None:
-            raise ValueError("the virtual skin needs the simulated skin (skin source sim)")
+            raise ConfigError("the virtual skin needs the simulated skin (skin source sim)")
         if touches and not self._touching:
             self.latency = TouchLatency(touch_wall=time.monotonic())
         self._touching = bool(touches)
@@ -311,13 +314,13 @@ class DashboardRunner:
         elif name == "perform":
             source = self._sim_source()
             if source is None:
-                raise ValueError("only the simulated skin can perform gestures")
+                raise ConfigError("only the simulated skin can perform gestures")
             source.perform(str(command.get("gesture", "")))
             session.state.messages.append(f"the simulated person performs {command['gesture']}")
         elif name == "autoplay":
             source = self._sim_source()
             if source is None:
-                raise ValueError("only the simulated skin has a simulated person")
+                raise ConfigError("only the simulated skin has a simulated person")
             source.autonomous = bool(command.get("on", True))
         elif name == "note":  # from note(), never from a page
             session.state.messages.append(command["text"])
@@ -337,12 +340,12 @@ class DashboardRunner:
         closed and the new one started; if starting fails (a device that does not answer)
         the old one is reopened, so the page never ends up with nothing.
         """
-        skin = _with_lookahead(skin)
         try:
+            skin = _with_lookahead(skin)
             candidate = self._opener(skin, robot)  # builds everything, connects nothing
         except Exception as exc:
             why = " ".join(str(exc).split()) or type(exc).__name__
-            raise ValueError(
+            raise ConfigError(
                 f"kept skin {self.skin_spec} and robot {self.robot_spec}: "
                 f"cannot use skin {skin!r} with robot {robot!r}: {why}"
             ) from exc
@@ -361,12 +364,10 @@ class DashboardRunner:
         self.session.state.messages.extend(messages)
         if failure is not None:
             why = f"could not start skin {skin!r} with robot {robot!r}: {failure}"
-            raise ValueError(why) from failure
+            raise ConfigError(why) from failure
         self.session.state.messages.append(f"now: skin {self.skin_spec}, robot {self.robot_spec}")
 
-    def _sim_source(self) -> Any:
-        from wovenskin.sim.live import SimulatedSkinSource
-
+    def _sim_source(self) -> SimulatedSkinSource | None:
         source = self.session.live_skin.source if self.session is not None else None
         return source if isinstance(source, SimulatedSkinSource) else None
 
@@ -377,17 +378,18 @@ class DashboardRunner:
 
 def _with_lookahead(skin: str) -> str:
     """``skin`` with the simulated skin's default touch lookahead added where it has none;
-    ValueError for a spec that does not parse."""
-    kind, _, options = parse_spec(skin)
-    if kind == "sim" and "lookahead" not in options:
-        return f"{skin}{',' if ':' in skin else ':'}lookahead={DEFAULT_SIM_LOOKAHEAD}"
-    return skin
+    a :class:`~wovenskin.errors.ConfigError` for a spec that does not parse."""
+    spec = skin_spec(skin)
+    if spec.kind != "sim" or "lookahead" in spec.options:
+        return skin
+    option = f"lookahead={DEFAULT_SIM_LOOKAHEAD}"
+    if "?" in spec.text:
+        return f"{spec.text}&{option}"
+    return f"{spec.text},{option}" if spec.options else f"{spec.text.rstrip(':')}:{option}"
 
 
 def _serial_ports() -> list[str]:
     """Serial ports for the page's skin choices, likely skins first (none if listing fails)."""
-    from wovenskin.skin.ports import list_ports
-
     try:
         ports = list_ports()
     except Exception:  # a port listing problem must not break the page
