@@ -12,7 +12,12 @@ from collections.abc import Callable, Iterator
 import numpy as np
 import pytest
 
-from wovenskin.sim.fake_device import FakeSkinDevice, run_fake_device
+from wovenskin.sim.fake_device import (
+    REST_ON_START_S,
+    FakeSkinDevice,
+    RestingPerson,
+    run_fake_device,
+)
 from wovenskin.skin.frames import Frame
 from wovenskin.skin.layout import ChannelOrder, SkinLayout
 from wovenskin.skin.messages import (
@@ -188,8 +193,6 @@ def test_run_fake_device_streams_a_simulated_person_that_a_source_can_read():
 def test_the_simulated_person_rests_while_a_host_calibrates():
     """A host sends START when it starts reading: the person keeps hands off for a second,
     so the reader's calibration (its first 0.5 s) sees no touch wherever the loop was."""
-    from wovenskin.sim.fake_device import REST_ON_START_S, RestingPerson
-
     rng = np.random.default_rng(0)
     frames = 20.0 + rng.normal(0, 0.01, size=(400, 2, 2)).astype(np.float32)
     frames[100:] += 5.0  # a touch from frame 100 on; frames 0-99 are idle

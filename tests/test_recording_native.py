@@ -452,8 +452,6 @@ def test_import_of_a_plain_stream_with_integer_frames(tmp_path):
 def test_tick_makes_buffered_frames_durable_while_the_stream_is_silent(tmp_path):
     import time as _time
 
-    from wovenskin.skin.frames import SkinInfo
-
     path = tmp_path / "quiet.wsrec"
     writer = RecordingWriter(path, SkinInfo(rows=2, cols=2), flush_interval_s=1.0)
     writer.append_frames(np.arange(3), np.arange(3) / 200.0, np.ones((3, 2, 2), np.float32))

@@ -12,7 +12,8 @@ from wovenskin.sim import spec
 from wovenskin.sim.invalid import INVALID_KINDS
 from wovenskin.sim.performances import perform
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinModel, SkinPhysics
+from wovenskin.sim.physics import SkinModel
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.skin.layout import SkinLayout
 
 LAYOUT = SkinLayout()

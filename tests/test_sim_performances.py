@@ -19,7 +19,8 @@ from wovenskin.sim import spec
 from wovenskin.sim.motion import Performance, minimum_jerk, peak_speed_factor
 from wovenskin.sim.performances import perform
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinModel, SkinPhysics
+from wovenskin.sim.physics import SkinModel
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.skin.layout import SkinLayout
 
 LAYOUT = SkinLayout()

@@ -10,13 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from wovenskin.sim.physics import (
-    ContactTrack,
-    NoiseBurst,
-    SkinModel,
-    SkinPhysics,
-    hertz_pressure_kpa,
-)
+from wovenskin.sim.contact import ContactTrack, NoiseBurst, hertz_pressure_kpa
+from wovenskin.sim.physics import SkinModel
+from wovenskin.sim.skin_physics import TYPICAL_GAIN_PF, SkinPhysics
 from wovenskin.skin.layout import SkinLayout
 
 LAYOUT = SkinLayout()
@@ -455,8 +451,6 @@ def test_field_spread_widens_a_fingertip_as_a_gaussian_blur_would():
 
 
 def test_sample_typical_keeps_the_gain_of_a_typical_skin():
-    from wovenskin.sim.physics import TYPICAL_GAIN_PF
-
     for seed in range(40):
         wide = SkinPhysics.sample(np.random.default_rng(seed))
         typical = SkinPhysics.sample_typical(np.random.default_rng(seed))

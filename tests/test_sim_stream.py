@@ -13,7 +13,7 @@ import pytest
 from wovenskin.gestures import GESTURE_NAMES, INVALID
 from wovenskin.sim.invalid import INVALID_KINDS
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinPhysics
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.sim.stream import EventScheduler, parse_request, simulate_stream
 from wovenskin.skin.layout import SkinLayout
 

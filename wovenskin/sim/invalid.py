@@ -26,6 +26,7 @@ import numpy as np
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import GESTURE_NAMES, INVALID
 from wovenskin.sim import spec
+from wovenskin.sim.contact import ContactTrack, NoiseBurst
 from wovenskin.sim.motion import (
     LEAD_S,
     FingerMotion,
@@ -45,7 +46,6 @@ from wovenskin.sim.motion import (
     zero_force_off_skin,
 )
 from wovenskin.sim.person import Person, Trial
-from wovenskin.sim.physics import ContactTrack, NoiseBurst
 from wovenskin.sim.valid import perform_valid
 from wovenskin.skin.layout import SkinLayout
 

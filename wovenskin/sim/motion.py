@@ -23,8 +23,8 @@ import numpy as np
 
 from wovenskin.io import to_jsonable
 from wovenskin.sim import spec
+from wovenskin.sim.contact import ContactTrack, NoiseBurst
 from wovenskin.sim.person import Trial
-from wovenskin.sim.physics import ContactTrack, NoiseBurst
 from wovenskin.skin.layout import SkinLayout
 
 LEAD_S = 0.12

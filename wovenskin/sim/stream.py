@@ -21,7 +21,8 @@ from wovenskin.sim.invalid import INVALID_KINDS
 from wovenskin.sim.motion import LEAD_S, Performance
 from wovenskin.sim.performances import perform
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinModel, SkinPhysics
+from wovenskin.sim.physics import SkinModel
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
 
 INITIAL_IDLE_S = (1.2, 1.7)
