@@ -8,11 +8,11 @@ import numpy as np
 from stand_ins import ContactMeans
 
 from wovenskin.control.safety import SafetyLayer, SafetyLimits
-from wovenskin.control.session import ControlSession
+from wovenskin.control.session import ControlSession, unsure_line
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.robots.sim import SimRobot
-from wovenskin.runtime.session import open_session, unsure_line
+from wovenskin.runtime.session import open_session
 from wovenskin.sim.stream import simulate_stream
 
 

@@ -30,8 +30,6 @@ import logging
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -39,91 +37,41 @@ import numpy as np
 from wovenskin.control.mapping import ActionMapping, PoseAction, TwistAction
 from wovenskin.control.motion import TwistShaper
 from wovenskin.control.poses import PoseStore
-from wovenskin.control.safety import SafetyLayer, SafetyLimits, StopEvent
+from wovenskin.control.safety import SafetyLayer, SafetyLimits
+from wovenskin.control.session_poses import PoseMove, PoseMoves
+from wovenskin.control.session_record import SessionRecording
+from wovenskin.control.session_state import (
+    UNSURE_FLOOR,
+    UNSURE_HOLD_S,
+    SessionResult,
+    SessionSettings,
+    SessionState,
+    unsure_line,
+)
 from wovenskin.control.trace import TraceWriter
-from wovenskin.robots.base import Robot, RobotError, RobotState
+from wovenskin.errors import ConfigError
+from wovenskin.robots.base import Robot, RobotError
+
+__all__ = [
+    "UNSURE_FLOOR",
+    "UNSURE_HOLD_S",
+    "ControlSession",
+    "SessionResult",
+    "SessionSettings",
+    "SessionState",
+    "unsure_line",
+]
 
 log = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True)
-class SessionSettings:
-    """How the loop turns commands into motion."""
-
-    pose_speed_fraction: float = 0.2  # joint moves to stored poses, fraction of joint limits
-    max_shaper_dt_s: float = 0.05  # longest step the twist shaper integrates at once
-    max_robot_step_s: float = 0.5  # longest step of a simulated robot (longer ones are cut)
-    error_repeat_s: float = 1.0  # the same error line is reported at most this often
-    idle_timeout_s: float = 0.02  # longest wait for skin frames in one step
-    # Time without frames counts on the wall clock (a live skin).  False only for a source
-    # played faster than real time into a simulated arm, which moves on the stream's clock:
-    # there only gaps in the stream's own timestamps stop the arm, so a pause of the host
-    # (a busy machine) cannot change the outcome of a replay.
-    wall_clock_stalls: bool = True
-
-
-@dataclass
-class SessionState:
-    """What views show: the newest tick's inputs and outputs.
-
-    The newest skin frame, its contacts and the stream's health are the ``LiveSkin``'s
-    own state (``session.live_skin.state``).
-    """
-
-    t: float = 0.0
-    ticks: int = 0
-    gesture: str | None = None
-    gesture_since: float | None = None
-    action: str = "-"
-    top: tuple[str, float] = ("-", 0.0)
-    probabilities: np.ndarray | None = None
-    class_names: tuple[str, ...] = ()
-    robot: RobotState | None = None
-    twist: np.ndarray = field(default_factory=lambda: np.zeros(6))
-    stops: list[StopEvent] = field(default_factory=list)
-    stopped: bool = False
-    messages: deque = field(default_factory=lambda: deque(maxlen=8))
-    last_error: str = ""
-    errors: int = 0
-    ended: bool = False
-    unsure: str = ""  # "unsure: a 0.55 / b 0.40" while the recogniser hesitates (see below)
-    unsure_t: float | None = None  # session time of the newest unsure reading
-
-
-@dataclass
-class SessionResult:
-    """Figures of a finished session."""
-
-    ticks: int
-    stream_s: float
-    wall_s: float
-    commands: int
-    stops: list[StopEvent]
-    errors: int
-    ended: str
-
-    def summary(self) -> str:
-        speed = self.stream_s / self.wall_s if self.wall_s > 0 else 0.0
-        reasons = "; ".join(f"{s.t:.2f} s {s.reason}" for s in self.stops[-3:])
-        return (
-            f"{self.ticks} control ticks over {self.stream_s:.1f} s of skin stream in "
-            f"{self.wall_s:.1f} s ({speed:.1f}x real time), {self.commands} command changes, "
-            f"{len(self.stops)} stops{f' ({reasons})' if reasons else ''}, "
-            f"{self.errors} errors; {self.ended}"
-        )
-
-
-@dataclass
-class _PoseMove:
-    name: str
-    hold_to_run: bool
-    started_t: float
-
-
-class ControlSession:
+class ControlSession(PoseMoves, SessionRecording):
     """The control loop of one session (see the module docstring).
 
-    ``live_skin`` and ``pipeline`` come from :func:`open_session` or are built by the
+    Pose moves (:class:`~wovenskin.control.session_poses.PoseMoves`) and the recording
+    (:class:`~wovenskin.control.session_record.SessionRecording`) are in their own modules.
+    ``live_skin`` and ``pipeline`` come from
+    :func:`~wovenskin.runtime.session.open_session` or are built by the
     caller (``LivePipeline.for_live_skin``); ``robot`` is the raw backend, which the
     session wraps in its own :class:`SafetyLayer`.  ``trace`` gets a line per tick;
     ``recorder`` (the :class:`~wovenskin.recording.native.RecordingWriter` also given to
@@ -168,7 +116,7 @@ class ControlSession:
         self._tick_t: float | None = None
         self._robot_t: float | None = None  # session time a simulated robot has reached
         self._traced_t: float | None = None  # time of the newest trace line
-        self._pose_move: _PoseMove | None = None
+        self._pose_move: PoseMove | None = None
         self._pose_tried: float | None = None  # gesture_since of the last pose command
         self._stops_seen = 0
         self._user_stop = False  # the stop key latches until resume()
@@ -252,63 +200,9 @@ class ControlSession:
         """Scale gesture twists and pose moves by ``scale`` (0.05-1); the caps still hold."""
         scale = float(scale)
         if not np.isfinite(scale) or not 0.05 <= scale <= 1.0:
-            raise ValueError(f"speed scale must be between 0.05 and 1, got {scale}")
+            raise ConfigError(f"speed scale must be between 0.05 and 1, got {scale}")
         self.speed_scale = scale
         self._message(f"speed scaled to {scale:.0%}")
-
-    def go_to_pose(self, name: str) -> bool:
-        """Start a move to the stored ``name`` pose that runs to completion (the dashboard's
-        go-home button); a gesture, the stop key or a watchdog ends it.  Returns whether
-        the move started: not while stopped, nor without a stored (or built-in) pose."""
-        if name not in ("home", "initial"):
-            raise ValueError(f"unknown pose {name!r}: use home or initial")
-        if self.safety.stopped:
-            self._error(f"cannot go to the {name} pose while stopped: clear the stop first")
-            return False
-        self._pose_move = None
-        started = self._start_pose_move(PoseAction(name, hold_to_run=False), self._now)
-        self._read_robot()  # the next tick must see the move, not the state before it
-        return started
-
-    def store_pose(self, name: str) -> None:
-        """Store the arm's current joints as the ``name`` pose (``PoseStore`` file)."""
-        from wovenskin.control.poses import set_pose_from_robot
-
-        if self.poses is None:
-            self.poses = PoseStore.load()
-        stored = set_pose_from_robot(self.poses, name, self.safety)
-        degrees = ", ".join(f"{v:.1f}" for v in np.degrees(stored.q))
-        self._message(f"stored the {name} pose ({degrees} deg) in {self.poses.path}")
-
-    @property
-    def recording(self) -> bool:
-        return self.recorder is not None
-
-    def start_recording(self, path: str | Path, overwrite: bool = False) -> Path:
-        """Write raw frames, predictions, commands, robot state and stops to ``path``
-        (``.wsrec``) from now on; ``FileExistsError`` unless ``overwrite``."""
-        from wovenskin.recording.native import RecordingWriter
-
-        if self.recorder is not None:
-            raise RuntimeError(f"already recording to {self.recorder.path}")
-        settings = {"conditioning": self.live_skin.config.to_dict(), **self.recording_context}
-        recorder = RecordingWriter(
-            path, self.live_skin.info, {"skin_source": "live"}, settings, overwrite=overwrite
-        )
-        self.recorder = recorder
-        self.live_skin.recorder = recorder
-        self._message(f"recording to {recorder.path}")
-        return Path(recorder.path)
-
-    def stop_recording(self) -> Path | None:
-        """Close the recording (every frame so far is on disk); returns its path."""
-        recorder, self.recorder = self.recorder, None
-        self.live_skin.recorder = None
-        if recorder is None:
-            return None
-        recorder.close()
-        self._message(f"recording saved: {recorder.path}")
-        return Path(recorder.path)
 
     # -- the loop
 
@@ -526,52 +420,6 @@ class ControlSession:
         self.state.twist = np.asarray(twist, dtype=float)
         self.safety.heartbeat_command(t)
 
-    def _start_pose_move(self, action: PoseAction, t: float) -> bool:
-        q = self._stored_pose(action.name)
-        if q is None:
-            return False
-        self.shaper.reset()
-        self.state.twist = np.zeros(6)
-        try:
-            self.safety.move_to_joints(q, self.settings.pose_speed_fraction * self.speed_scale)
-        except (RobotError, ValueError) as exc:
-            self._robot_failed(exc)
-            return False
-        self._pose_move = _PoseMove(action.name, action.hold_to_run, t)
-        mode = "hold to run" if action.hold_to_run else "to completion"
-        self.state.action = f"move to {action.name} ({mode})"
-        self._message(f"{t:8.2f} s  moving to the {action.name} pose ({mode})")
-        return True
-
-    def _continue_pose_move(self, action: Any) -> bool:
-        """Whether the running pose move goes on this tick; stops it when it must end."""
-        move = self._pose_move
-        assert move is not None
-        same = isinstance(action, PoseAction) and action.name == move.name
-        if same or (action is None and not move.hold_to_run):
-            robot = self.state.robot
-            if robot is not None and not robot.moving and self._tick_t != move.started_t:
-                self.state.action = "-"
-                self._message(f"{self._now:8.2f} s  reached the {move.name} pose")
-                return False
-            return True
-        try:  # the command ended (hold to run) or another one took over
-            self.safety.stop()
-        except RobotError as exc:
-            self._robot_failed(exc)
-        self.state.action = "-"
-        return False
-
-    def _stored_pose(self, name: str) -> np.ndarray | None:
-        stored = self.poses.get(name) if self.poses is not None else None
-        if stored is not None:
-            return np.asarray(stored.q, dtype=float)
-        default = _declared_default_pose(self.robot, name)
-        if default is not None:
-            return default
-        self._error(f"no stored {name!r} pose: store one with `wovenskin pose set {name}`")
-        return None
-
     def _robot_failed(self, exc: Exception) -> None:
         self._error(f"robot: {exc}")
         self._pose_move = None
@@ -643,23 +491,6 @@ class ControlSession:
             held.append(f"{why}: the arm moves at {scale:.0%} of the command")
         return tuple(held)
 
-    def _note_unsure(self, t: float, probabilities: np.ndarray) -> None:
-        """Keep the recogniser's hesitation for the views: while fingers are on the skin
-        and no command runs, the two likeliest gestures when the best one is at least
-        :data:`UNSURE_FLOOR` but would not fire (below the model's ``min_probability``,
-        or ``invalid`` ranks first).  The line stays :data:`UNSURE_HOLD_S` after the touch,
-        so a user sees how the gesture was read and can draw it better."""
-        names = self.state.class_names
-        if self.state.gesture is not None:
-            self.state.unsure, self.state.unsure_t = "", None
-            return
-        line = unsure_line(probabilities, names, _min_probability(self.pipeline))
-        contacts = getattr(getattr(self.live_skin, "state", None), "contacts", None)
-        if line and contacts:
-            self.state.unsure, self.state.unsure_t = line, t
-        elif self.state.unsure_t is not None and t - self.state.unsure_t > UNSURE_HOLD_S:
-            self.state.unsure, self.state.unsure_t = "", None
-
     # -- reporting
 
     def _message(self, text: str) -> None:
@@ -676,68 +507,3 @@ class ControlSession:
             self._message(f"error: {line}")
         if self.recorder is not None:
             self.recorder.add_annotation("errors", self._now, {"message": line})
-
-    def _record_predictions(self, t: float) -> None:
-        probabilities = getattr(self.pipeline, "latest_probabilities", None)
-        if probabilities is None:
-            return
-        probabilities = np.asarray(probabilities, dtype=np.float32)
-        self.state.probabilities = probabilities
-        if probabilities.size and self.state.class_names:
-            k = int(np.argmax(probabilities))
-            self.state.top = (self.state.class_names[k], float(probabilities[k]))
-            self._note_unsure(t, probabilities)
-        if self.recorder is not None:
-            top, p = self.state.top
-            payload = {"top": top, "p": p, "probabilities": probabilities}
-            self.recorder.add_annotation("predictions", t, payload)
-
-    def _record_robot(self, t: float) -> None:
-        robot = self.state.robot
-        assert robot is not None
-        payload = {
-            "q": np.asarray(robot.q, dtype=np.float64),
-            "tcp": np.asarray(robot.tcp.position, dtype=np.float64),
-            "quat": np.asarray(robot.tcp.quat, dtype=np.float64),
-            "tcp_speed": robot.tcp_speed,
-            "twist_command": np.asarray(self.state.twist, dtype=np.float64),
-            "gesture": self.state.gesture,
-        }
-        self.recorder.add_annotation("robot", t, payload)
-
-
-UNSURE_FLOOR = 0.3  # a gesture this likely is worth showing when nothing fires
-UNSURE_HOLD_S = 2.0  # how long the last unsure reading stays after the touch
-
-
-def unsure_line(
-    probabilities: np.ndarray, class_names: tuple[str, ...], min_probability: float
-) -> str:
-    """``"unsure: swipe_left 0.55 / swipe_left_2f 0.40"`` when the likeliest gesture
-    reaches :data:`UNSURE_FLOOR` but would not fire (below ``min_probability`` or behind
-    ``invalid``); ``""`` otherwise."""
-    p = np.asarray(probabilities, dtype=float).reshape(-1)
-    if p.size != len(class_names) or not np.all(np.isfinite(p)):
-        return ""
-    gestures = [k for k, name in enumerate(class_names) if name != "invalid"]
-    ranked = sorted(gestures, key=lambda k: -p[k])[:2]
-    if not ranked or p[ranked[0]] < UNSURE_FLOOR:
-        return ""
-    best = ranked[0]
-    if int(np.argmax(p)) == best and p[best] >= min_probability:
-        return ""  # it would fire
-    shown = " / ".join(f"{class_names[k]} {p[k]:.2f}" for k in ranked if p[k] >= 0.05)
-    return f"unsure: {shown}"
-
-
-def _min_probability(pipeline: Any) -> float:
-    """The arbiter's ``min_probability`` (0 when the pipeline does not say)."""
-    settings = getattr(getattr(pipeline, "settings", None), "arbiter", None)
-    return float(getattr(settings, "min_probability", 0.0) or 0.0)
-
-
-def _declared_default_pose(robot: Robot, name: str) -> np.ndarray | None:
-    """The backend's declared pose ``name`` (``RobotCapabilities.default_poses``: the
-    simulated arm's home and initial poses) when none is stored."""
-    pose = robot.capabilities().default_poses.get(name)
-    return None if pose is None else np.asarray(pose, dtype=float)
