@@ -12,12 +12,8 @@ from collections.abc import Callable, Iterator
 import numpy as np
 import pytest
 
-from wovenskin.sim.fake_device import (
-    REST_ON_START_S,
-    FakeSkinDevice,
-    RestingPerson,
-    run_fake_device,
-)
+from wovenskin.sim.fake_device import REST_ON_START_S, RestingPerson, run_fake_device
+from wovenskin.sim.pty_skin import FakeSkinDevice
 from wovenskin.skin.frames import Frame
 from wovenskin.skin.layout import ChannelOrder, SkinLayout
 from wovenskin.skin.messages import (

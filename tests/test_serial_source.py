@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from wovenskin.runtime.sources import open_source
-from wovenskin.sim.fake_device import FakeSkinDevice
+from wovenskin.sim.pty_skin import FakeSkinDevice
 from wovenskin.skin.frames import Frame, SourceEvent
 from wovenskin.skin.layout import ChannelOrder, SkinLayout
 from wovenskin.skin.messages import CommandId, SampleDtype
