@@ -19,6 +19,7 @@ from wovenskin.cli.app import (
     robot_errors,
     user_errors,
 )
+from wovenskin.errors import ConfigError
 
 
 @app.command()
@@ -64,16 +65,16 @@ def run(
     if headless:
         view = "none"
     if view not in ("dashboard", "terminal", "none"):
-        raise ValueError(f"--view must be dashboard, terminal or none, got {view!r}")
+        raise ConfigError(f"--view must be dashboard, terminal or none, got {view!r}")
     headless = view == "none"
     if skin is None:
         skin = "sim:auto=0" if view == "dashboard" else "sim"
     to_stdout = trace == "-"
     out = err_console if to_stdout or headless else console
     if trace == "-" and not headless:
-        raise ValueError("--trace - (stdout) needs --headless")
+        raise ConfigError("--trace - (stdout) needs --headless")
     if seconds is not None and not seconds > 0:
-        raise ValueError(f"--seconds must be positive, got {seconds}")
+        raise ConfigError(f"--seconds must be positive, got {seconds}")
     if view == "dashboard":
         _run_dashboard(
             skin, robot, model, host=host, port=port, token=token, open_browser=open_browser,
@@ -141,14 +142,14 @@ def _run_dashboard(
     from wovenskin.ui.dashboard.server import needs_token, new_token, other_device_urls, serve
 
     if not 30.0 <= ui_rate <= 60.0:
-        raise ValueError(f"--ui-rate must be 30-60 updates per second, got {ui_rate}")
+        raise ConfigError(f"--ui-rate must be 30-60 updates per second, got {ui_rate}")
     with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn does
         try:
             probe.bind((host, port))
         except OSError as exc:
             why = f"cannot listen on {host}:{port} ({exc.strerror})"
-            raise ValueError(f"{why}: choose another with --port") from None
+            raise ConfigError(f"{why}: choose another with --port") from None
     if needs_token(host) and token is None:
         token = new_token()
     first = {"record": record, "trace": TraceWriter(trace, overwrite=overwrite) if trace else None}

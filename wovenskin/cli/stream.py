@@ -15,6 +15,7 @@ from wovenskin.cli.app import (
     user_errors,
     warn,
 )
+from wovenskin.errors import DataError
 
 
 @app.command()
@@ -83,7 +84,7 @@ def eval_stream(
     for path in streams:  # every file checked before minutes of pipeline are spent
         unknown = unknown_labels(load_stream(path).event_labels)
         if unknown:  # no command could match them: scored, they would pass as misses
-            raise ValueError(f"{unknown_labels_message(str(path), unknown)}; not scored")
+            raise DataError(f"{unknown_labels_message(str(path), unknown)}; not scored")
     recognizer = load_recognizer(model, threads=threads)
     settings = pipeline_settings(recognizer, every, dwell_ms, min_probability)
     rows, details = [], []

@@ -44,6 +44,8 @@ def open_source(spec: str | Spec = "sim", **overrides: Any) -> SkinSource:
     parsed = skin_spec(spec, **overrides)
     options = dict(parsed.options)
     if parsed.kind == "sim":
+        if parsed.target:
+            raise SpecError(parsed.text, "gives the simulated skin a target: use sim:KEY=VALUE,...")
         return SimulatedSkinSource.from_options(options)
     if not parsed.target:
         example = "serial:/dev/ttyACM0" if parsed.kind == "serial" else "replay:stream.npz"
