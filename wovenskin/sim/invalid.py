@@ -36,9 +36,9 @@ from wovenskin.sim.motion import (
     available_box,
     contact_envelope,
     fingertip_track,
-    fit_onto_skin,
     fold_into_box,
     minimum_jerk,
+    place_on_skin,
     rotate,
     smooth_noise,
     smooth_noise_2d,
@@ -393,8 +393,7 @@ def _several_fingers(count: int):
         else:
             m = max(2, int(round(trial.uniform(0.2, 1.5) * fs)))
             centreline = np.zeros((m, 2))
-        centre = trial.location(layout.width_mm, layout.height_mm)
-        paths, _ = fit_onto_skin([centreline + o for o in offsets], layout, centre)
+        paths, _ = place_on_skin(trial, [centreline + o for o in offsets], layout)
         motions = [FingerMotion(f, p) for f, p in zip(names, paths, strict=True)]
         return assemble_hand(
             trial,

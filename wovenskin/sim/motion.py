@@ -221,6 +221,21 @@ def fit_onto_skin(
     return placed, scale
 
 
+def place_on_skin(
+    trial: Trial, paths: list[np.ndarray], layout: SkinLayout
+) -> tuple[list[np.ndarray], float]:
+    """:func:`fit_onto_skin` around where ``trial`` centres its gesture."""
+    centre = trial.location(layout.width_mm, layout.height_mm)
+    return fit_onto_skin(paths, layout, centre)
+
+
+def lagging_progress(trial: Trial, m: int, fs: float, max_lag_s: float) -> np.ndarray:
+    """:func:`minimum_jerk` progress over ``m`` samples that starts up to ``max_lag_s``
+    late (one finger of several setting off after the others)."""
+    lag = int(round(trial.uniform(0.0, max_lag_s) * fs))
+    return np.concatenate([np.zeros(lag), minimum_jerk(m - lag, trial.skew())])
+
+
 # -- hand assembly -----------------------------------------------------------------------------
 @dataclass
 class FingerMotion:

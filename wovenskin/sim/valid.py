@@ -25,10 +25,11 @@ from wovenskin.sim.motion import (
     FingerMotion,
     Performance,
     assemble_hand,
-    fit_onto_skin,
+    lagging_progress,
     largest_fitting_scale,
     minimum_jerk,
     peak_speed_factor,
+    place_on_skin,
     rotate,
     smooth_noise,
 )
@@ -82,8 +83,7 @@ def _swipe(trial: Trial, layout: SkinLayout, fs: float, name: str) -> Performanc
     m = max(2, int(round(travel / speed * fs)) + 1)
     centreline = shape(minimum_jerk(m, skew), travel)
     centreline -= centreline.mean(axis=0)
-    centre = trial.location(layout.width_mm, layout.height_mm)
-    paths, scale = fit_onto_skin([centreline + o for o in offsets], layout, centre)
+    paths, scale = place_on_skin(trial, [centreline + o for o in offsets], layout)
     motions = []
     for i, (finger, path) in enumerate(zip(fingers, paths, strict=True)):
         if i > 0:  # the second finger follows the first imperfectly
@@ -126,8 +126,7 @@ def _push(trial: Trial, layout: SkinLayout, fs: float, name: str) -> Performance
     gain = 1.0 + (held_force / landing_force - 1.0) * progress
     creep = trial.uniform(0.0, 1.0) * rotate(np.array([1.0, 0.0]), trial.uniform(0, 2 * np.pi))
     path = minimum_jerk(m)[:, None] * creep  # the fingertip rolls slightly as it presses
-    centre = trial.location(layout.width_mm, layout.height_mm)
-    (path,), _ = fit_onto_skin([path], layout, centre)
+    (path,), _ = place_on_skin(trial, [path], layout)
     hold = max(trial.rest_s(), trial.uniform(0.1, 0.5))
     return assemble_hand(
         trial,
@@ -179,8 +178,7 @@ def _circle(trial: Trial, layout: SkinLayout, fs: float, name: str) -> Performan
     pair = rotate(np.broadcast_to(across * spacing / 2, (m, 2)), turn_of_hand)
     radius = min(radius_wanted, largest_fitting_scale(unit, np.abs(pair[0]) * 2, layout))
     centroid = unit * radius
-    centre = trial.location(layout.width_mm, layout.height_mm)
-    (path_a, path_b), scale = fit_onto_skin([centroid - pair, centroid + pair], layout, centre)
+    (path_a, path_b), scale = place_on_skin(trial, [centroid - pair, centroid + pair], layout)
     fingers = ["index", "middle"] if trial.mirror() > 0 else ["middle", "index"]
     motions = [FingerMotion(fingers[0], path_a), FingerMotion(fingers[1], path_b)]
     return assemble_hand(
@@ -214,15 +212,13 @@ def _pinch_2f(trial: Trial, layout: SkinLayout, fs: float, name: str) -> Perform
     twist = trial.rng.normal(0.0, math.radians(6))
     paths = []
     for sign, portion in ((-1.0, share), (1.0, 1.0 - share)):
-        delay = int(round(trial.uniform(0.0, 0.04) * fs))
-        progress = np.concatenate([np.zeros(delay), minimum_jerk(m - delay, trial.skew())])
+        progress = lagging_progress(trial, m, fs, 0.04)
         begin = sign * axis * start / 2
         travel = -sign * axis * closing * portion
         curve = rotate(axis, math.pi / 2) * trial.rng.normal(0.0, 0.05) * closing * portion
         point = begin[None] + progress[:, None] * travel + np.sin(np.pi * progress)[:, None] * curve
         paths.append(rotate(point, twist * progress))
-    centre = trial.location(layout.width_mm, layout.height_mm)
-    paths, scale = fit_onto_skin(paths, layout, centre)
+    paths, scale = place_on_skin(trial, paths, layout)
     motions = [FingerMotion("thumb", paths[0]), FingerMotion("index", paths[1])]
     return assemble_hand(
         trial,
@@ -275,11 +271,9 @@ def _pinch_5f(trial: Trial, layout: SkinLayout, fs: float, name: str) -> Perform
         a, b = far * spread_r, bunched[finger]
         if not inward:
             a, b = b, a
-        delay = int(round(trial.uniform(0.0, 0.05) * fs))
-        progress = np.concatenate([np.zeros(delay), minimum_jerk(m - delay, trial.skew())])
+        progress = lagging_progress(trial, m, fs, 0.05)
         paths.append(a + progress[:, None] * (b - a) + progress[:, None] * drift)
-    centre = trial.location(layout.width_mm, layout.height_mm)
-    paths, scale = fit_onto_skin(paths, layout, centre)
+    paths, scale = place_on_skin(trial, paths, layout)
     motions = [FingerMotion(f, p) for f, p in zip(unit_spread, paths, strict=True)]
     return assemble_hand(
         trial,
