@@ -6,6 +6,7 @@ import importlib.util
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -16,9 +17,9 @@ from wovenskin.bench import model as bench_model
 from wovenskin.cli import app
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.sim.stream import simulate_stream
-from wovenskin.training import captures as captures_module
-from wovenskin.training import compare as compare_module
+from wovenskin.training import capture_eval, capture_lopo, capture_train, runs
 from wovenskin.training.checkpoint import read_meta
+from wovenskin.training.config import CAPTURE_DEFAULTS
 from wovenskin.training.datasets import generate_sim_dataset, open_dataset
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
@@ -76,17 +77,18 @@ def fake_captures(monkeypatch):
             to_dict=lambda: {"capture_accuracy": 0.9, "window_accuracy": 0.8, "n_captures": 10}
         )
 
-    def train_on_captures(path, out_dir, **kwargs):
-        calls["train"] = (Path(path), Path(out_dir), kwargs)
+    def train_on_captures(path, out_dir, config, **kwargs):
+        calls["train"] = (Path(path), Path(out_dir), config, kwargs)
         validation = SimpleNamespace(accuracy=0.75, macro_f1=0.7)
         return SimpleNamespace(validation=validation, best_epoch=3, stop_reason="completed")
 
-    def leave_one_participant_out(path, out_dir, **kwargs):
-        calls["lopo"] = (Path(path), Path(out_dir), kwargs)
+    def leave_one_participant_out(path, out_dir, config, **kwargs):
+        calls["lopo"] = (Path(path), Path(out_dir), config, kwargs)
         return SimpleNamespace(to_dict=lambda: {"mean_capture_accuracy": 0.85, "folds": [1, 2]})
 
-    for function in (evaluate_captures, train_on_captures, leave_one_participant_out):
-        monkeypatch.setattr(captures_module, function.__name__, function)
+    monkeypatch.setattr(capture_eval, "evaluate_captures", evaluate_captures)
+    monkeypatch.setattr(capture_train, "train_on_captures", train_on_captures)
+    monkeypatch.setattr(capture_lopo, "leave_one_participant_out", leave_one_participant_out)
     return calls
 
 
@@ -146,7 +148,7 @@ def test_train_without_data_builds_the_default_set(tmp_path, monkeypatch):
     def tiny_generate(path, workers, progress):
         return generate_sim_dataset(path, 3, 40, 10, 20.0, seed=2, workers=1, progress=progress)
 
-    monkeypatch.setattr(compare_module, "generate_sim_dataset", tiny_generate)
+    monkeypatch.setattr(runs, "generate_sim_dataset", tiny_generate)
     hparams = json.dumps(TINY_HPARAMS["bilstm"])
     result = invoke("train", "--model", "bilstm", "--hparams", hparams, *TINY_TRAIN)
     assert result.exit_code == 0, result.output
@@ -164,7 +166,7 @@ def test_train_without_data_builds_the_default_set(tmp_path, monkeypatch):
         (["--model", "gru"], "unknown model 'gru'"),
         (["--split", "all"], "cannot train on split 'all'"),
         (["--captures", "x.npz"], "give --data or --captures, not both"),
-        (["--epochs", "0"], "epochs, batch_size and patience must be at least 1"),
+        (["--epochs", "0"], "bad training settings: epochs: Input should be greater than 0"),
     ],
 )
 def test_train_errors_are_one_line(dataset_run, tmp_path, args, message):
@@ -184,10 +186,10 @@ def test_training_commands_need_torch(monkeypatch, tmp_path):
 def test_train_on_captures(fake_captures, tmp_path):
     result = invoke("train", "--captures", tmp_path / "h.npz", "--out", tmp_path / "m", "--seed", 4)
     assert result.exit_code == 0, result.output
-    path, out, kwargs = fake_captures["train"]
+    path, out, config, kwargs = fake_captures["train"]
     assert (path, out) == (tmp_path / "h.npz", tmp_path / "m")
-    assert kwargs["model"] is None and kwargs["epochs"] is None and kwargs["seed"] == 4
-    assert kwargs["threads"] == 1 and kwargs["resume"] is False and callable(kwargs["progress"])
+    assert config == replace(CAPTURE_DEFAULTS, seed=4)  # the capture recipe, not the window one
+    assert callable(kwargs["progress"])
     assert "validation window accuracy 75.00 %" in result.stdout
 
 
@@ -283,8 +285,9 @@ def test_eval_leave_one_participant_out(fake_captures, trained, tmp_path):
     result = invoke(*args, "--arch", "bilstm", "--epochs", "2", "--json")
     assert result.exit_code == 0, result.output
     assert json.loads(result.stdout)["mean_capture_accuracy"] == 0.85
-    path, out, kwargs = fake_captures["lopo"]
-    assert out == tmp_path / "lopo" and kwargs["model"] == "bilstm" and kwargs["epochs"] == 2
+    path, out, config, kwargs = fake_captures["lopo"]
+    assert out == tmp_path / "lopo" and config.model == "bilstm" and config.epochs == 2
+    assert config.hparams is None and config.lr == CAPTURE_DEFAULTS.lr
     one_line_error(invoke(*args, "--model", trained), "name the architecture with --arch")
 
 

@@ -12,28 +12,27 @@ import numpy as np
 import pytest
 
 from tests.conftest import SHARED
+from wovenskin.errors import ConfigError
 from wovenskin.recording.formats import (
     LabelledCaptures,
     read_labelled_captures,
     write_labelled_captures,
 )
-from wovenskin.training.captures import (
-    CaptureRecipe,
+from wovenskin.training.capture_eval import evaluate_captures, score_captures
+from wovenskin.training.capture_lopo import leave_one_participant_out
+from wovenskin.training.capture_prep import (
     CaptureWindowArray,
-    evaluate_captures,
+    capture_windows,
     grid_symmetries,
-    internal_validation,
-    leave_one_participant_out,
     prepare_capture,
     prepare_captures,
     resample_frames,
-    score_captures,
-    train_on_captures,
     window_ending,
 )
+from wovenskin.training.capture_train import internal_validation, train_on_captures
 from wovenskin.training.checkpoint import read_meta
+from wovenskin.training.config import CAPTURE_DEFAULTS, CAPTURE_HPARAMS, CaptureConfig, TrainConfig
 from wovenskin.training.datasets import CaptureNormalisation
-from wovenskin.training.windows import capture_windows
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 
@@ -41,16 +40,21 @@ HAART = SHARED / "datasets" / "haart" / "haart-train.npz"
 REPO = Path(__file__).resolve().parents[1]
 RATE = 20.0
 CLASSES = ["still", "tap", "none"]
-TINY = CaptureRecipe(
+TINY = replace(
+    CAPTURE_DEFAULTS,
     hparams={"stem_channels": 4, "dim": 8, "n_blocks": 2, "window_norm": False},
     epochs=5,
     batch_size=16,
     lr=5e-3,
-    frame_step=2,
-    window_frames=10,
-    eval_stride=5,
-    windows_per_capture=16,
+    threads=1,
+    captures=CaptureConfig(frame_step=2, window_frames=10, eval_stride=5, windows_per_capture=16),
 )
+
+
+def recipe(**changes) -> TrainConfig:
+    """TINY with ``changes``, the capture ones (window_frames...) applied to its captures."""
+    feed = {k: changes.pop(k) for k in list(changes) if hasattr(TINY.captures, k)}
+    return replace(TINY, captures=replace(TINY.captures, **feed), **changes)
 
 
 def synthetic_captures(seed: int = 0, people=("p1", "p2", "p3"), per_cell: int = 4):
@@ -91,9 +95,7 @@ def trained(tmp_path_factory):
     path = root / "train.npz"
     write_labelled_captures(path, synthetic_captures(0))
     events = []
-    result = train_on_captures(
-        path, root / "model", seed=0, threads=1, recipe=TINY, progress=events.append
-    )
+    result = train_on_captures(path, root / "model", replace(TINY, seed=0), progress=events.append)
     return path, root / "model", result, events
 
 
@@ -221,12 +223,12 @@ def test_train_records_what_evaluation_needs(trained):
     meta = read_meta(model_dir)
     assert (model_dir / "model.onnx").is_file() and (model_dir / "model.pt").is_file()
     assert meta.class_names == tuple(CLASSES) and meta.sample_rate_hz == RATE
-    assert meta.window == TINY.window_frames and (meta.rows, meta.cols) == (4, 4)
+    assert meta.window == TINY.captures.window_frames and (meta.rows, meta.cols) == (4, 4)
     assert meta.conditioning["frame_step"] == 2
     norm = CaptureNormalisation.from_dict(meta.conditioning["capture_normalisation"])
     assert norm.reference_scale is not None and norm.reference_scale > 0
     info = meta.training_data["captures"]
-    assert info["recipe"]["eval_stride"] == TINY.eval_stride
+    assert info["recipe"]["eval_stride"] == TINY.captures.eval_stride
     assert info["n_train_captures"] + info["n_val_captures"] == 36
     assert info["val_groups"] == ["p1", "p2", "p3"]
     assert result.epochs_run >= 1 and 1 <= result.best_epoch <= result.epochs_run
@@ -239,11 +241,11 @@ def test_resume_of_a_finished_run_keeps_its_result(trained, tmp_path):
     path, model_dir, result, _ = trained
     again = tmp_path / "model"
     shutil.copytree(model_dir, again)
-    resumed = train_on_captures(path, again, threads=1, recipe=TINY, resume=True)
+    resumed = train_on_captures(path, again, replace(TINY, resume=True))
     assert resumed.best_epoch == result.best_epoch
     assert resumed.best_val_accuracy == result.best_val_accuracy
     with pytest.raises(ValueError, match="cannot resume"):
-        train_on_captures(path, again, threads=1, recipe=replace(TINY, lr=1e-3), resume=True)
+        train_on_captures(path, again, replace(TINY, lr=1e-3, resume=True))
 
 
 def test_evaluation_needs_no_torch(trained):
@@ -251,7 +253,7 @@ def test_evaluation_needs_no_torch(trained):
     script = textwrap.dedent(
         f"""
         import sys
-        from wovenskin.training.captures import evaluate_captures
+        from wovenskin.training.capture_eval import evaluate_captures
         d = evaluate_captures({str(path)!r}, {str(model_dir)!r}).to_dict()
         print("CAPTURES", d["n_captures"])
         print("TORCH", sorted(m for m in sys.modules if m == "torch" or m.startswith("torch.")))
@@ -319,8 +321,10 @@ def test_symmetric_training_makes_single_views_nearly_agree(trained):
     c = synthetic_captures(seed=7, people=("q1",))
     recognizer = OnnxRecognizer(model_dir)
     stored = read_meta(model_dir).conditioning["capture_normalisation"]
-    prepared = prepare_captures(c, CaptureNormalisation.from_dict(stored), TINY.frame_step)
-    batch = np.stack([window_ending(x, len(x) - 1, TINY.window_frames) for x in prepared.values()])
+    prepared = prepare_captures(c, CaptureNormalisation.from_dict(stored), TINY.captures.frame_step)
+    batch = np.stack(
+        [window_ending(x, len(x) - 1, TINY.captures.window_frames) for x in prepared.values()]
+    )
     per_view = np.stack(
         [recognizer.predict_proba(np.ascontiguousarray(v)) for v in grid_symmetries(batch, True)]
     )
@@ -360,15 +364,15 @@ def test_evaluate_refuses_files_and_models_that_do_not_match(trained, tmp_path):
 def test_val_groups_hold_out_whole_participants(tmp_path):
     path = tmp_path / "c.npz"
     write_labelled_captures(path, synthetic_captures(0, per_cell=2))
-    recipe = replace(TINY, epochs=1)
-    train_on_captures(path, tmp_path / "m", val_groups=["p2"], threads=1, recipe=recipe)
+    config = recipe(epochs=1)
+    train_on_captures(path, tmp_path / "m", config, val_groups=["p2"])
     info = read_meta(tmp_path / "m").training_data["captures"]
     assert info["val_groups"] == ["p2"] and info["train_groups"] == ["p1", "p3"]
     assert info["n_val_captures"] == 6
     with pytest.raises(ValueError, match="validation group.* p9 not in the file"):
-        train_on_captures(path, tmp_path / "n", val_groups=["p9"], recipe=recipe)
+        train_on_captures(path, tmp_path / "n", config, val_groups=["p9"])
     with pytest.raises(ValueError, match="every capture would be validation"):
-        train_on_captures(path, tmp_path / "n", val_groups=["p1", "p2", "p3"], recipe=recipe)
+        train_on_captures(path, tmp_path / "n", config, val_groups=["p1", "p2", "p3"])
 
 
 def test_leave_one_participant_out(tmp_path):
@@ -376,7 +380,7 @@ def test_leave_one_participant_out(tmp_path):
     write_labelled_captures(path, synthetic_captures(0, per_cell=3))
     seen = []
     result = leave_one_participant_out(
-        path, tmp_path / "lopo", threads=1, recipe=replace(TINY, epochs=2), on_fold=seen.append
+        path, tmp_path / "lopo", recipe(epochs=2), on_fold=seen.append
     )
     assert [f.participant for f in result.folds] == ["p1", "p2", "p3"]
     assert [f.index for f in seen] == [1, 2, 3] and all(f.folds == 3 for f in seen)
@@ -391,29 +395,29 @@ def test_leave_one_participant_out(tmp_path):
     hits = sum(f.evaluation.capture_accuracy * 9 for f in result.folds)
     assert d["capture_accuracy"] == pytest.approx(hits / 27)
     assert d["mean_fold_capture_accuracy"] == pytest.approx(hits / 27)
-    only = leave_one_participant_out(
-        path, tmp_path / "one", participants=["p2"], threads=1, recipe=replace(TINY, epochs=1)
-    )
+    only = leave_one_participant_out(path, tmp_path / "one", recipe(epochs=1), participants=["p2"])
     assert [f.participant for f in only.folds] == ["p2"]
     with pytest.raises(ValueError, match="participant.* p7 not in"):
-        leave_one_participant_out(path, tmp_path / "x", participants=["p7"], recipe=TINY)
+        leave_one_participant_out(path, tmp_path / "x", TINY, participants=["p7"])
 
 
-def test_recipe_rejects_bad_settings():
-    with pytest.raises(ValueError, match="window_frames must be an integer >= 1"):
-        CaptureRecipe(window_frames=0)
-    with pytest.raises(ValueError, match="lr must be positive"):
-        CaptureRecipe(lr=0.0)
-    with pytest.raises(ValueError, match="time_stretch must be a factor >= 1"):
-        CaptureRecipe(time_stretch=0.9)
-    with pytest.raises(ValueError, match="gain must be a factor >= 1"):
-        CaptureRecipe(gain=float("nan"))
-    with pytest.raises(ValueError, match="noise must not be negative"):
-        CaptureRecipe(noise=-0.1)
-    with pytest.raises(ValueError, match="label_smoothing"):
-        CaptureRecipe(label_smoothing=1.0)
-    assert CaptureRecipe().resolved_hparams()["dim"] == 32
-    assert CaptureRecipe(model="bilstm").resolved_hparams() == {}
+def test_capture_settings_reject_bad_values_in_one_line():
+    for settings, message in (
+        ({"captures": {"window_frames": 0}}, "captures.window_frames: Input should be greater"),
+        ({"lr": 0.0}, "lr: Input should be greater than 0"),
+        ({"captures": {"time_stretch": 0.9}}, "captures.time_stretch"),
+        ({"captures": {"gain": float("nan")}}, "captures.gain"),
+        ({"captures": {"noise": -0.1}}, "captures.noise"),
+        ({"label_smoothing": 1.0}, "label_smoothing"),
+        ({"captures": {"frame_stride": 2}}, "unknown setting 'captures.frame_stride'"),
+    ):
+        with pytest.raises(ConfigError, match=message) as error:
+            TrainConfig.from_dict(settings)
+        assert "\n" not in str(error.value)
+    with pytest.raises(ConfigError, match="captures.window_frames"):
+        train_on_captures("unused.npz", "unused", recipe(window_frames=0))
+    assert CAPTURE_DEFAULTS.resolved_hparams(CAPTURE_HPARAMS)["dim"] == 32
+    assert CAPTURE_DEFAULTS.with_model("bilstm").resolved_hparams(CAPTURE_HPARAMS) == {}
 
 
 # --------------------------------------------------------------------------- real data
@@ -431,8 +435,7 @@ def test_haart_two_participants_train_and_score(tmp_path):
     write_labelled_captures(path, subset)
     prepared = prepare_captures(subset, CaptureNormalisation().resolved(subset), 2)
     assert prepared[0].shape == (108, 10, 10)
-    recipe = replace(TINY, window_frames=54, eval_stride=27, epochs=1)
-    train_on_captures(path, tmp_path / "m", threads=1, recipe=recipe)
+    train_on_captures(path, tmp_path / "m", recipe(window_frames=54, eval_stride=27, epochs=1))
     d = evaluate_captures(path, tmp_path / "m").to_dict()
     assert d["n_captures"] == len(keep) and d["n_windows"] == 3 * len(keep)
     assert d["class_names"] == list(c.class_names)

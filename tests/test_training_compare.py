@@ -3,24 +3,21 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from rich.console import Console
 
-from wovenskin.training import compare as compare_module
+from wovenskin.training import runs
 from wovenskin.training.checkpoint import read_meta
-from wovenskin.training.compare import (
-    COMPARE_FILE,
-    TrainOptions,
-    TrainProgressDisplay,
-    compare_models,
-    ensure_dataset,
-    train_on_dataset,
-)
+from wovenskin.training.compare import compare_models, train_on_dataset
+from wovenskin.training.config import TrainConfig
 from wovenskin.training.datasets import DatasetError, generate_sim_dataset, grouped_split
+from wovenskin.training.history import EpochRecord, TrainEvent
+from wovenskin.training.progress import TrainProgressDisplay
 from wovenskin.training.report import dataset_fingerprint, evaluate_on_dataset
-from wovenskin.training.train import EpochRecord, TrainEvent
+from wovenskin.training.runs import COMPARE_FILE, ensure_dataset
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 
@@ -36,7 +33,7 @@ TINY_HPARAMS = {
     "bilstm": {"hidden": 16, "n_layers": 1},
     "tcn": {"dim": 16, "n_blocks": 2, "stem_channels": 8},
 }
-OPTIONS = TrainOptions(epochs=1, batch_size=32, threads=1, val_fraction=0.34)
+OPTIONS = TrainConfig(epochs=1, batch_size=32, threads=1, val_fraction=0.34)
 
 
 @pytest.fixture(scope="module")
@@ -46,14 +43,14 @@ def data(tmp_path_factory):
 
 def test_ensure_dataset_builds_the_default_set_once(tmp_path, monkeypatch):
     default = tmp_path / "runs" / "datasets" / "sim-default"
-    monkeypatch.setattr(compare_module, "DEFAULT_DATASET_DIR", default)
+    monkeypatch.setattr(runs, "DEFAULT_DATASET_DIR", default)
     builds = []
 
     def tiny_generate(path, workers, progress):
         builds.append(path)
         return generate_sim_dataset(path, seed=1, progress=progress, **TINY_SET)
 
-    monkeypatch.setattr(compare_module, "generate_sim_dataset", tiny_generate)
+    monkeypatch.setattr(runs, "generate_sim_dataset", tiny_generate)
     reports = []
     ds, built = ensure_dataset(None, progress=lambda done, total: reports.append((done, total)))
     assert built and builds == [default] and ds.path == default
@@ -65,7 +62,9 @@ def test_ensure_dataset_builds_the_default_set_once(tmp_path, monkeypatch):
 
 
 def test_train_on_dataset_records_data_and_split(data, tmp_path):
-    result = train_on_dataset(data, tmp_path / "m", "tcn", "grouped", OPTIONS, TINY_HPARAMS["tcn"])
+    result = train_on_dataset(
+        data, tmp_path / "m", "grouped", replace(OPTIONS, model="tcn", hparams=TINY_HPARAMS["tcn"])
+    )
     assert result.epochs_run == 1
     training = read_meta(tmp_path / "m").training_data
     assert training["dataset"]["fingerprint"] == dataset_fingerprint(data)
@@ -75,7 +74,7 @@ def test_train_on_dataset_records_data_and_split(data, tmp_path):
     assert training["training"]["n_train"] == expected.train.size
     assert result.validation.n == expected.val.size
     with pytest.raises(DatasetError, match="cannot train on split 'all'"):
-        train_on_dataset(data, tmp_path / "x", "tcn", "all", OPTIONS)
+        train_on_dataset(data, tmp_path / "x", "all", replace(OPTIONS, model="tcn"))
 
 
 def test_compare_models_side_by_side(data, tmp_path):
@@ -148,11 +147,11 @@ def test_compare_scores_each_model_on_whole_streams(data, tmp_path):
 
 def test_compare_models_refuses_bad_requests(data, tmp_path):
     with pytest.raises(ValueError, match="unknown model"):
-        compare_models(data, tmp_path, ["transformer", "gru"], options=OPTIONS)
+        compare_models(data, tmp_path, ["transformer", "gru"], config=OPTIONS)
     with pytest.raises(ValueError, match="not compared: tcn"):
-        compare_models(data, tmp_path, ["bilstm"], options=OPTIONS, hparams=TINY_HPARAMS)
+        compare_models(data, tmp_path, ["bilstm"], config=OPTIONS, hparams=TINY_HPARAMS)
     with pytest.raises(DatasetError, match="unknown split"):
-        compare_models(data, tmp_path, ["bilstm"], ["all"], options=OPTIONS)
+        compare_models(data, tmp_path, ["bilstm"], ["all"], config=OPTIONS)
 
 
 def _record(epoch: int, val_accuracy: float, val_loss: float) -> EpochRecord:

@@ -28,7 +28,6 @@ from wovenskin.training.datasets import (
     CaptureNormalisation,
     DatasetError,
     WindowDataset,
-    _motion_end_s,
     build_dataset_from_captures,
     build_dataset_from_streams,
     generate_sim_dataset,
@@ -41,7 +40,8 @@ from wovenskin.training.datasets import (
     sim_skin_name,
     stream_identity,
 )
-from wovenskin.training.windows import SOURCE_CODES, SOURCE_NAMES
+from wovenskin.training.datasets.streams import motion_end_s
+from wovenskin.training.window_settings import SOURCE_CODES, SOURCE_NAMES
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 
@@ -249,7 +249,7 @@ def test_build_from_streams_and_recordings(tmp_path, stream_files):
     assert skin == sim_skin_name(SkinPhysics.from_dict(a.metadata["physics"]))
     assert ds.group_names["person"] == [person, "unknown"]  # the .wsrec names no participant
     # the simulator's motion end survives the file and bounds the informative span
-    motion_end = _motion_end_s(read_labelled_stream(root / "a.npz"))
+    motion_end = motion_end_s(read_labelled_stream(root / "a.npz"))
     is_gesture = a.event_labels != INVALID
     assert np.all(np.isfinite(motion_end[is_gesture])) and np.all(np.isnan(motion_end[~is_gesture]))
     # (a flick lifts off while still moving: its motion may end a few frames after lift-off)
@@ -345,7 +345,7 @@ def test_capture_normalisation():
         CaptureNormalisation().apply(frames)
     with pytest.raises(ValueError, match="offset_quantile < scale_quantile"):
         CaptureNormalisation(offset_quantile=0.9, scale_quantile=0.5)
-    with pytest.raises(ValueError, match="unknown capture normalisation"):
+    with pytest.raises(ValueError, match="bad capture normalisation: unknown setting"):
         CaptureNormalisation.from_dict({"gain": 2})
 
 

@@ -12,7 +12,8 @@ from rich.console import Console
 
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.training.checkpoint import read_meta, write_meta
-from wovenskin.training.compare import TrainOptions, train_on_dataset
+from wovenskin.training.compare import train_on_dataset
+from wovenskin.training.config import TrainConfig
 from wovenskin.training.datasets import (
     DatasetError,
     generate_sim_dataset,
@@ -56,8 +57,10 @@ def data(tmp_path_factory):
 def checkpoint(data, tmp_path_factory) -> Path:
     """A tiny TCN trained one epoch on the grouped split (a third of the recordings)."""
     out = tmp_path_factory.mktemp("model") / "tcn"
-    options = TrainOptions(epochs=1, batch_size=32, threads=1, val_fraction=0.34)
-    train_on_dataset(data, out, "tcn", "grouped", options, TINY_TCN)
+    config = TrainConfig(
+        model="tcn", hparams=TINY_TCN, epochs=1, batch_size=32, threads=1, val_fraction=0.34
+    )
+    train_on_dataset(data, out, "grouped", config)
     return out
 
 

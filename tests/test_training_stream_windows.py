@@ -8,7 +8,8 @@ from wovenskin.training.stream_windows import (
     sample_stream_windows,
     window_labels,
 )
-from wovenskin.training.windows import SOURCE_CODES, FrameEvents, WindowSettings
+from wovenskin.training.window_settings import SOURCE_CODES, WindowSettings
+from wovenskin.training.windows import FrameEvents
 
 INVALID = 9
 SETTINGS = WindowSettings(window_frames=30, min_motion_frames=6, motion_lag_frames=6)

@@ -20,20 +20,13 @@ from wovenskin.training.checkpoint import (
     load_checkpoint,
     read_meta,
 )
+from wovenskin.training.config import TrainConfig
+from wovenskin.training.history import CURVE_FILE, HISTORY_FILE, TrainEvent, write_history
+from wovenskin.training.metrics import ClassificationMetrics, ClassScore, classification_metrics
 from wovenskin.training.models import build_model
-from wovenskin.training.train import (
-    CURVE_FILE,
-    HISTORY_FILE,
-    STATE_FILE,
-    ClassificationMetrics,
-    TrainEvent,
-    checkpoint_meta_for,
-    classification_metrics,
-    evaluate,
-    fit_input_scale,
-    train_model,
-    write_history,
-)
+from wovenskin.training.run_meta import checkpoint_meta_for
+from wovenskin.training.scoring import evaluate
+from wovenskin.training.train import STATE_FILE, fit_input_scale
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 
@@ -47,6 +40,17 @@ DATA_META = {
     "source": "synthetic moving blobs",
 }
 SMALL_TRANSFORMER = {"n_layers": 2, "ff_dim": 64}
+
+
+def train_model(
+    model_name, windows, labels, class_names, train_idx, val_idx, out_dir, meta,
+    progress=None, **settings,
+):  # fmt: skip
+    """:func:`~wovenskin.training.train.train_model` with its settings as keywords."""
+    config = TrainConfig(model=model_name, **settings)
+    return train_module.train_model(
+        windows, labels, class_names, train_idx, val_idx, out_dir, meta, config, progress
+    )
 
 
 def moving_blobs(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -102,7 +106,7 @@ def test_classification_metrics_by_hand() -> None:
 def test_absent_classes_do_not_enter_macro_f1() -> None:
     m = classification_metrics(np.array([0, 0, 1]), np.array([0, 0, 1]), ["a", "b", "c"])
     assert m.macro_f1 == 1.0
-    assert m.per_class[2] == train_module.ClassScore("c", 0.0, 0.0, 0.0, 0)
+    assert m.per_class[2] == ClassScore("c", 0.0, 0.0, 0.0, 0)
 
 
 def test_classification_metrics_refuses_bad_input() -> None:
@@ -444,7 +448,7 @@ def test_bad_training_input_is_refused(tmp_path: Path, data) -> None:
         run(meta=DATA_META | {"grid": {"rows": 10, "cols": 10}})
     with pytest.raises(ValueError, match="unknown hyperparameter"):
         run(hparams={"depth": 3})
-    with pytest.raises(ValueError, match="at least 1"):
+    with pytest.raises(ValueError, match="batch_size: Input should be greater than 0"):
         run(batch_size=0)
     with pytest.raises(ValueError, match="label_smoothing"):
         run(label_smoothing=1.0)

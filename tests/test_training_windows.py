@@ -19,14 +19,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from wovenskin.training.capture_prep import capture_window_ends, capture_windows
+from wovenskin.training.window_settings import SOURCE_CODES, WindowSettings
 from wovenskin.training.windows import (
-    SOURCE_CODES,
     FrameEvents,
-    WindowSettings,
     align_to_contact,
     canvas_starts,
-    capture_window_ends,
-    capture_windows,
     events_to_frames,
     gather_windows,
     overlay_windows,
@@ -112,7 +110,7 @@ def test_settings_round_trip_and_validation():
         WindowSettings(overlay_fraction=1.5)
     with pytest.raises(ValueError, match="invalid_mix"):
         WindowSettings(invalid_mix=(0, 0, 0))
-    with pytest.raises(ValueError, match="unknown window setting"):
+    with pytest.raises(ValueError, match="bad window settings: unknown setting"):
         WindowSettings.from_dict({"window": 30})
 
 

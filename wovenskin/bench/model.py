@@ -33,8 +33,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import onnxruntime
+import torch
 from rich.table import Table
 
+from wovenskin.gestures import CLASS_NAMES
+from wovenskin.recognition.onnx_runtime import OnnxRecognizer, export_onnx
+from wovenskin.recognition.shipped import ModelNotFoundError, default_model_dir
+from wovenskin.signal.config import ConditioningConfig
+from wovenskin.training.checkpoint import (
+    WEIGHTS_FILE,
+    CheckpointMeta,
+    load_checkpoint,
+    read_meta,
+    write_meta,
+)
+from wovenskin.training.models import MODEL_REGISTRY, build_model, count_parameters, resolve_hparams
 from wovenskin.training.timing import WARMUP_CALLS as WARMUP_CALLS  # re-exported
 from wovenskin.training.timing import measure_latency, one_core
 
@@ -177,13 +191,6 @@ class _Candidate:
 
 def _fresh_candidates(directory: Path, names: list[str]) -> list[_Candidate]:
     """Registry models at default hparams, fresh weights, exported to ONNX in ``directory``."""
-    import torch
-
-    from wovenskin.gestures import CLASS_NAMES
-    from wovenskin.recognition.onnx_runtime import export_onnx
-    from wovenskin.signal.config import ConditioningConfig
-    from wovenskin.training.checkpoint import CheckpointMeta, write_meta
-    from wovenskin.training.models import build_model, resolve_hparams
 
     candidates = []
     for name in names:
@@ -208,11 +215,6 @@ def _fresh_candidates(directory: Path, names: list[str]) -> list[_Candidate]:
 
 def _shipped_candidate() -> _Candidate | None:
     """The shipped default model, when the package holds one (its torch twin from its meta)."""
-    import torch
-
-    from wovenskin.recognition.shipped import ModelNotFoundError, default_model_dir
-    from wovenskin.training.checkpoint import WEIGHTS_FILE, load_checkpoint, read_meta
-    from wovenskin.training.models import build_model
 
     try:
         directory = default_model_dir()
@@ -237,11 +239,6 @@ def run_model_benchmark(
     progress: Callable[[str], None] | None = None,
 ) -> ModelBenchResult:
     """Time every registry model (and the shipped one) on ONNX Runtime and torch."""
-    import onnxruntime
-    import torch
-
-    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
-    from wovenskin.training.models import MODEL_REGISTRY, count_parameters
 
     if batch_size < 1:
         raise ValueError(f"batch size must be at least 1, got {batch_size}")
@@ -338,7 +335,6 @@ def run_model_benchmark(
 
 
 def _torch_call(model: Any) -> Callable[[np.ndarray], object]:
-    import torch
 
     def call(windows: np.ndarray) -> object:
         return model(torch.from_numpy(windows))

@@ -1,12 +1,21 @@
-"""Commands that build data sets, train, evaluate and compare models (need PyTorch)."""
+"""Commands that build data sets, train, evaluate and compare models (training needs PyTorch).
+
+Modules that import torch (training.compare, capture_train, capture_lopo) are imported
+inside the commands that need them, after ``require_torch``, so ``wovenskin --help`` and
+the ONNX-only ``eval`` work without torch.
+"""
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
 from pathlib import Path
 
 import typer
 from rich.console import Console
 from rich.markup import escape
+from rich.progress import Progress
+from rich.table import Table
 
 from wovenskin.cli.app import (
     app,
@@ -16,36 +25,44 @@ from wovenskin.cli.app import (
     user_errors,
     warn,
 )
+from wovenskin.errors import ConfigError
+from wovenskin.recognition.shipped import DEFAULT_MODEL_DIR, resolve_model_dir
+from wovenskin.training import capture_eval, runs
+from wovenskin.training.config import CAPTURE_DEFAULTS, TrainConfig
+from wovenskin.training.datasets import build_dataset_from_streams, generate_sim_dataset
+from wovenskin.training.progress import TrainProgressDisplay, dataset_progress
+from wovenskin.training.report import (
+    DatasetSummary,
+    evaluate_on_dataset,
+    per_class_table,
+    write_report,
+)
+from wovenskin.training.window_settings import WindowSettings
 
 SPLIT_HELP = "grouped (recordings, people and skins never seen in training) or random (85/15)."
 
 
 def _json_object(text: str, option: str) -> dict:
     """Parse an option holding a JSON object ('' gives an empty one)."""
-    import json
-
     if not text.strip():
         return {}
     try:
         value = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"{option} is not valid JSON: {exc.msg} at column {exc.colno}") from None
+        raise ConfigError(f"{option} is not valid JSON: {exc.msg} at column {exc.colno}") from None
     if not isinstance(value, dict):
-        raise ValueError(f"{option} must be a JSON object, e.g. '{{\"n_layers\": 2}}'")
+        raise ConfigError(f"{option} must be a JSON object, e.g. '{{\"n_layers\": 2}}'")
     return value
 
 
 def _open_or_build_dataset(data: Path | None, ui: Console):
     """The data set at ``data``, or the default one (generated with a progress bar if missing)."""
-    from wovenskin.training.compare import DEFAULT_DATASET_DIR, dataset_progress, ensure_dataset
-    from wovenskin.training.report import DatasetSummary
-
-    if data is not None or (DEFAULT_DATASET_DIR / "meta.json").is_file():
-        return ensure_dataset(data)[0]
-    ui.print(f"no data set given: building the default one in {DEFAULT_DATASET_DIR} (once)")
+    if data is not None or runs.default_dataset_exists():
+        return runs.ensure_dataset(data)[0]
+    ui.print(f"no data set given: building the default one in {runs.DEFAULT_DATASET_DIR} (once)")
     bar, update = dataset_progress(ui, "simulating recordings")
     with bar:
-        ds, _ = ensure_dataset(None, progress=update)
+        ds, _ = runs.ensure_dataset(None, progress=update)
     summary = DatasetSummary.of(ds)
     ui.print(summary.table(ds.class_names))
     ui.print(summary.describe(), highlight=False, soft_wrap=True)
@@ -87,11 +104,6 @@ def dataset(
     overwrite: bool = typer.Option(False, help="Replace an existing data set."),
 ) -> None:
     """Build a window data set from simulation or labelled streams."""
-    from wovenskin.training.compare import dataset_progress
-    from wovenskin.training.datasets import build_dataset_from_streams, generate_sim_dataset
-    from wovenskin.training.report import DatasetSummary
-    from wovenskin.training.windows import WindowSettings
-
     settings = WindowSettings(recipe=recipe)
 
     files = [*(streams or []), *(more_streams or [])]
@@ -139,38 +151,41 @@ def train(
 ) -> None:
     """Train a gesture classifier (PyTorch) with early stopping, checkpoints and resume."""
     require_torch("wovenskin train")
-    from wovenskin.training.compare import (
-        DEFAULT_EPOCHS,
-        RUNS_DIR,
-        TrainOptions,
-        TrainProgressDisplay,
-        default_train_dir,
-        train_on_dataset,
-    )
+    from wovenskin.training.compare import train_on_dataset  # needs torch
 
+    settings = {
+        "batch_size": batch_size, "lr": lr, "seed": seed, "patience": patience,
+        "split_seed": split_seed, "resume": resume, "threads": threads,
+        "time_budget_s": None if time_budget is None else 60 * time_budget,
+    }  # fmt: skip
     if captures is not None:
         if data is not None:
-            raise ValueError("give --data or --captures, not both")
-        out = out or RUNS_DIR / "models" / f"captures-{captures.stem}"
-        _check_checkpoint_dir(out, overwrite, resume)
-        _train_on_captures(captures, out, model, epochs, seed, threads, resume)
+            raise ConfigError("give --data or --captures, not both")
+        out = out or runs.default_captures_dir(captures)
+        runs.check_checkpoint_dir(out, overwrite, resume)
+        # Captures keep their own recipe: only --model, --epochs, --seed, --threads and
+        # --resume apply (CAPTURE_DEFAULTS for the rest).
+        config = replace(
+            CAPTURE_DEFAULTS.with_model(model), seed=seed, threads=threads, resume=resume,
+            epochs=CAPTURE_DEFAULTS.epochs if epochs is None else epochs,
+        )  # fmt: skip
+        _train_on_captures(captures, out, config)
         return
-    model = model or "transformer"
-    out = out or default_train_dir(model, split)
-    _check_checkpoint_dir(out, overwrite, resume)
+    model = model or TrainConfig.model
+    out = out or runs.default_train_dir(model, split)
+    runs.check_checkpoint_dir(out, overwrite, resume)
     parameters = _json_object(hparams, "--hparams")
-    ds = _open_or_build_dataset(data, console)
-    options = TrainOptions(
-        epochs=DEFAULT_EPOCHS if epochs is None else epochs, batch_size=batch_size, lr=lr,
-        seed=seed, patience=patience, split_seed=split_seed, resume=resume,
-        time_budget_s=None if time_budget is None else 60 * time_budget, threads=threads,
+    config = TrainConfig.from_dict(
+        {**settings, "model": model, "hparams": parameters,
+         **({} if epochs is None else {"epochs": epochs})}
     )  # fmt: skip
+    ds = _open_or_build_dataset(data, console)
     console.print(
         f"training {model} on {ds.path} ({split} split) into {out}", highlight=False, soft_wrap=True
     )
     try:
         with TrainProgressDisplay(console) as show:
-            result = train_on_dataset(ds, out, model, split, options, parameters, show)
+            result = train_on_dataset(ds, out, split, config, show)
     except KeyboardInterrupt:
         raise _interrupted(out) from None
     v = result.validation
@@ -185,51 +200,15 @@ def train(
     )
 
 
-CHECKPOINT_FILES = ("model.pt", "model.onnx", "meta.json", "training_state.pt")
+def _train_on_captures(path: Path, out: Path, config: TrainConfig) -> None:
+    from wovenskin.training.capture_train import train_on_captures  # needs torch
 
-
-def _check_comparison_dir(out: Path, overwrite: bool, resume: bool) -> None:
-    """Refuse to compare into ``out`` when it holds a comparison or a trained model (in
-    ``out/<split>/<model>/``) unless resuming it or ``overwrite``."""
-    from wovenskin.outputs import OutputExistsError
-    from wovenskin.training.compare import COMPARE_FILE
-
-    if resume or overwrite or not out.is_dir():
-        return
-    found = (out / COMPARE_FILE).exists() or any(
-        (checkpoint / name).exists() for checkpoint in out.glob("*/*") for name in CHECKPOINT_FILES
-    )
-    if found:
-        raise OutputExistsError(out, "a comparison (--resume continues it)")
-
-
-def _check_checkpoint_dir(out: Path, overwrite: bool, resume: bool) -> None:
-    """Refuse to train over a model already in ``out`` unless resuming it or ``overwrite``."""
-    from wovenskin.outputs import OutputExistsError
-
-    if resume or overwrite or not out.is_dir():
-        return
-    if any((out / name).exists() for name in CHECKPOINT_FILES):
-        raise OutputExistsError(out, "a trained model (--resume continues it)")
-
-
-def _train_on_captures(
-    path: Path, out: Path | None, model: str | None, epochs: int | None, seed: int,
-    threads: int, resume: bool,
-) -> None:  # fmt: skip
-    from wovenskin.training.captures import train_on_captures
-    from wovenskin.training.compare import RUNS_DIR, TrainProgressDisplay
-
-    out = out or RUNS_DIR / "models" / f"captures-{path.stem}"
     console.print(
         f"training on labelled captures {path} into {out}", highlight=False, soft_wrap=True
     )
     try:
         with TrainProgressDisplay(console) as show:
-            result = train_on_captures(
-                path, out, model=model, epochs=epochs, seed=seed, threads=threads,
-                progress=show, resume=resume,
-            )  # fmt: skip
+            result = train_on_captures(path, out, config, progress=show)
     except KeyboardInterrupt:
         raise _interrupted(out) from None
     validation = getattr(result, "validation", None)
@@ -249,8 +228,6 @@ def _train_on_captures(
 
 def _print_scalars(document: dict, title: str) -> None:
     """The top-level numbers and strings of a result document, as a two-column table."""
-    from rich.table import Table
-
     table = Table(title=title, show_header=False)
     for key, value in document.items():
         if isinstance(value, float):
@@ -286,31 +263,13 @@ def eval_command(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
 ) -> None:
     """Score a model with ONNX Runtime: accuracy, macro-F1, per-class table, confusion matrix."""
-    import json
-
-    from wovenskin.recognition.shipped import DEFAULT_MODEL_DIR, resolve_model_dir
-
     if captures is not None:
         _eval_captures(captures, model, out, lopo, arch, epochs, threads, json_out)
         return
     if lopo:
-        raise ValueError("--lopo needs --captures FILE")
-    from rich.progress import Progress
-
-    from wovenskin.training.checkpoint import read_meta
-    from wovenskin.training.compare import DEFAULT_DATASET_DIR, RUNS_DIR
-    from wovenskin.training.report import evaluate_on_dataset, per_class_table, write_report
-
+        raise ConfigError("--lopo needs --captures FILE")
     model_dir = resolve_model_dir(model)
-    if data is None:
-        trained_on = read_meta(model_dir).training_data.get("dataset") or {}
-        recorded = trained_on.get("path") if isinstance(trained_on, dict) else None
-        if recorded and Path(recorded).is_dir():
-            data = Path(recorded)
-        elif (DEFAULT_DATASET_DIR / "meta.json").is_file():
-            data = DEFAULT_DATASET_DIR
-        else:
-            raise ValueError("no data set to score on: pass --data DIR (see wovenskin dataset)")
+    data = data or runs.eval_dataset_dir(model_dir)
     with Progress(console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
         task = bar.add_task("classifying windows", total=None)
         report = evaluate_on_dataset(
@@ -319,7 +278,7 @@ def eval_command(
         )  # fmt: skip
     if out is None:
         shipped = model_dir.resolve() == DEFAULT_MODEL_DIR.resolve()
-        base = RUNS_DIR / "eval" / "shipped" if shipped else model_dir
+        base = runs.RUNS_DIR / "eval" / "shipped" if shipped else model_dir
         out = base / f"eval-{report.split}"
     files = write_report(report, out)
     for warning in report.warnings:
@@ -341,28 +300,23 @@ def _eval_captures(
     path: Path, model: Path | None, out: Path | None, lopo: bool, arch: str | None,
     epochs: int | None, threads: int, json_out: bool,
 ) -> None:  # fmt: skip
-    import json
-
-    from wovenskin.training import captures as captures_module
-
     if lopo:
         require_torch("wovenskin eval --lopo")
-        from wovenskin.training.compare import RUNS_DIR, TrainProgressDisplay
+        from wovenskin.training.capture_lopo import leave_one_participant_out  # needs torch
 
         if model is not None:
-            raise ValueError("--lopo trains its own models: name the architecture with --arch")
-        out = out or RUNS_DIR / "lopo" / path.stem
-        options = {k: v for k, v in (("model", arch), ("epochs", epochs)) if v is not None}
+            raise ConfigError("--lopo trains its own models: name the architecture with --arch")
+        config = replace(CAPTURE_DEFAULTS.with_model(arch), threads=threads)
+        if epochs is not None:
+            config = replace(config, epochs=epochs)
         with TrainProgressDisplay(err_console) as show:
-            result = captures_module.leave_one_participant_out(
-                path, out, threads=threads, progress=show, **options
+            result = leave_one_participant_out(
+                path, out or runs.default_lopo_dir(path), config, progress=show
             )
         title = f"leave-one-participant-out on {path}"
     else:
-        from wovenskin.recognition.shipped import resolve_model_dir
-
         with err_console.status(f"scoring {path}..."):
-            result = captures_module.evaluate_captures(path, resolve_model_dir(model))
+            result = capture_eval.evaluate_captures(path, resolve_model_dir(model))
         title = f"{path} scored by {model or 'the shipped model'}"
     document = result.to_dict()
     if json_out:
@@ -385,7 +339,9 @@ def compare(
         "false activations/min and latency beside the window figures.",
     ),
     out: Path = typer.Option(Path("runs/compare"), help="Directory of checkpoints and reports."),
-    models: str = typer.Option("transformer,bilstm,tcn", help="Comma-separated models."),
+    models: str = typer.Option(
+        "", help="Comma-separated models (default: every registered one: transformer,bilstm,tcn)."
+    ),
     split: str = typer.Option("grouped", help="grouped, random or both: grouped,random."),
     epochs: int = typer.Option(None, help="Most epochs per model (default 3); may stop sooner."),
     batch_size: int = typer.Option(64, help="Windows per training step."),
@@ -406,32 +362,25 @@ def compare(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
 ) -> None:
     """Train and score several models on the same data and split: the side-by-side table."""
-    import json
-
     require_torch("wovenskin compare")
-    from wovenskin.training.compare import (
-        DEFAULT_EPOCHS,
-        TrainOptions,
-        TrainProgressDisplay,
-        compare_models,
-    )
+    from wovenskin.training.compare import compare_models  # needs torch
 
-    epochs = DEFAULT_EPOCHS if epochs is None else epochs
     names = [m.strip() for m in models.split(",") if m.strip()]
     splits = [s.strip() for s in split.split(",") if s.strip()]
     parameters = _json_object(hparams, "--hparams")
     if any(not isinstance(v, dict) for v in parameters.values()):
-        raise ValueError("--hparams must map model names to JSON objects")
+        raise ConfigError("--hparams must map model names to JSON objects")
     ui = err_console if json_out else console
     targets = [out] if len(data or [None]) == 1 else [out / Path(str(d)).name for d in data]
     for target in targets:  # refused before any data set is built or model trained
-        _check_comparison_dir(target, overwrite, resume)
-    datasets = [_open_or_build_dataset(d, ui) for d in (data or [None])]
-    options = TrainOptions(
-        epochs=epochs, batch_size=batch_size, lr=lr, seed=seed, patience=patience,
-        split_seed=split_seed, resume=resume,
-        time_budget_s=None if time_budget is None else 60 * time_budget, threads=threads,
+        runs.check_comparison_dir(target, overwrite, resume)
+    config = TrainConfig.from_dict(
+        {"batch_size": batch_size, "lr": lr, "seed": seed, "patience": patience,
+         "split_seed": split_seed, "resume": resume, "threads": threads,
+         "time_budget_s": None if time_budget is None else 60 * time_budget,
+         **({} if epochs is None else {"epochs": epochs})}
     )  # fmt: skip
+    datasets = [_open_or_build_dataset(d, ui) for d in (data or [None])]
 
     def reported(model: str, split_name: str, report) -> None:
         ui.print(f"{model} / {split_name}: {report.summary()}", highlight=False, soft_wrap=True)
@@ -447,7 +396,7 @@ def compare(
                         target,
                         names,
                         splits,
-                        options,
+                        config,
                         parameters,
                         latency_repeats,
                         show,

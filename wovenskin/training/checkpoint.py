@@ -16,17 +16,19 @@ with a one-line ``ValueError`` naming what differs.
 The metadata side (:class:`CheckpointMeta`, :func:`read_meta`, :func:`write_meta`, the
 file names) lives in :mod:`~wovenskin.recognition.checkpoint_meta` and is re-exported
 here, so :mod:`~wovenskin.recognition.onnx_runtime` needs only that lower module and the
-imports run one way.  This module imports torch only inside :func:`save_checkpoint` and
-:func:`load_checkpoint`, so :func:`read_meta` and :class:`CheckpointMeta` serve
-torch-free inference.
+imports run one way; torch-free code reads metadata from there.  This module needs torch.
 """
 
 from __future__ import annotations
 
+import io
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import TYPE_CHECKING
 
+import torch
+from torch import nn
+
+from wovenskin import __version__
 from wovenskin.recognition.checkpoint_meta import (
     FORMAT_VERSION,
     META_FILE,
@@ -41,9 +43,7 @@ from wovenskin.recognition.checkpoint_meta import (
     write_meta,
 )
 from wovenskin.recognition.onnx_runtime import export_onnx as _export_onnx
-
-if TYPE_CHECKING:
-    from torch import nn
+from wovenskin.training.models import MODEL_REGISTRY, build_model
 
 __all__ = [
     "CheckpointError",
@@ -62,17 +62,7 @@ __all__ = [
 ]
 
 
-def _versions() -> tuple[str, str]:
-    import torch
-
-    import wovenskin
-
-    return torch.__version__, getattr(wovenskin, "__version__", "")
-
-
 def _check_model_matches(model: nn.Module, meta: CheckpointMeta) -> None:
-    from wovenskin.training.models import MODEL_REGISTRY
-
     expected_type = MODEL_REGISTRY.get(meta.model_name)
     if expected_type is None:
         raise ValueError(f"unknown model {meta.model_name!r}; known: {', '.join(MODEL_REGISTRY)}")
@@ -98,17 +88,12 @@ def save_checkpoint(
     exported (and verified against torch) too; without it any older ``model.onnx`` is
     removed, so the directory never pairs weights with a stale graph.
     """
-    import io
-
-    import torch
-
     _check_model_matches(model, meta)
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    torch_version, wovenskin_version = _versions()
     meta = meta.with_updates(
-        torch_version=torch_version,
-        wovenskin_version=wovenskin_version,
+        torch_version=torch.__version__,
+        wovenskin_version=__version__,
         created=datetime.now(UTC).isoformat(timespec="seconds"),
     )
     buffer = io.BytesIO()
@@ -124,10 +109,6 @@ def save_checkpoint(
 
 def load_checkpoint(directory: str | Path) -> tuple[nn.Module, CheckpointMeta]:
     """Rebuild the torch model of a checkpoint directory, in eval mode, with its meta."""
-    import torch
-
-    from wovenskin.training.models import build_model
-
     meta = read_meta(directory)
     path = Path(directory) / WEIGHTS_FILE
     if not path.is_file():

@@ -1,12 +1,5 @@
 """Training on window data sets, and side-by-side comparison of the classifiers.
 
-This module is the layer between the ``wovenskin train`` / ``compare`` commands and
-:func:`~wovenskin.training.train.train_model`:
-
-- :func:`ensure_dataset` opens a data set directory, or builds the default simulated set
-  there (the paper's size, :func:`~wovenskin.training.datasets.generate_sim_dataset`
-  defaults) when it is missing -- only for the default location, so a mistyped path is an
-  error, not a 2-minute surprise.
 - :func:`train_on_dataset` splits a data set (:func:`~.report.dataset_split`), trains one
   model on it and stores the data set's fingerprint and the split in the checkpoint
   (:func:`~.report.split_record`), so ``wovenskin eval`` rebuilds exactly the validation
@@ -16,146 +9,75 @@ This module is the layer between the ``wovenskin train`` / ``compare`` commands 
   (writing its evaluation report into ``<checkpoint>/eval-<split>/``), times them at batch
   1 on one thread in interleaved rounds (:func:`~.timing.measure_latency`),
   and returns a :class:`Comparison`: the paper's side-by-side table, plus macro-F1 and
-  parameter counts, written as ``compare.json``.
-- :class:`TrainProgressDisplay` shows training in the terminal (Rich): a bar per epoch with
-  the running loss, and one line per finished epoch with validation accuracy;
-  :func:`dataset_progress` is the bar over recordings while a data set is built.
+  parameter counts, written as ``compare.json``.  Any model of the registry
+  (:data:`~.models.MODEL_REGISTRY`) can be named.
 
-Torch is imported only inside the functions that train.
+Both take one :class:`~wovenskin.training.config.TrainConfig`.  Needs torch.
 """
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
 from rich.table import Table
 
-from wovenskin.training.datasets import (
-    DatasetError,
-    ProgressCallback,
-    WindowDataset,
-    generate_sim_dataset,
-    open_dataset,
+from wovenskin.errors import ConfigError
+from wovenskin.io import dumps
+from wovenskin.recognition.event_scoring import aggregate, score_stream
+from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+from wovenskin.recognition.pipeline import (
+    PipelineSettings,
+    arbiter_settings_for_model,
+    load_stream,
+    run_pipeline,
 )
+from wovenskin.settings import to_dict
+from wovenskin.training.checkpoint import load_checkpoint
+from wovenskin.training.config import TrainConfig
+from wovenskin.training.datasets import DatasetError, WindowDataset
+from wovenskin.training.history import TrainEvent
+from wovenskin.training.models import MODEL_REGISTRY, count_parameters
 from wovenskin.training.report import (
-    DEFAULT_VAL_FRACTION,
     EvalReport,
     dataset_split,
     evaluate_on_dataset,
     split_record,
     write_report,
 )
+from wovenskin.training.runs import COMPARE_FILE
+from wovenskin.training.timing import measure_latency, one_core
+from wovenskin.training.train import TrainResult, train_model
 
-if TYPE_CHECKING:
-    from wovenskin.training.train import TrainEvent, TrainResult
-
-RUNS_DIR = Path("runs")
-DEFAULT_DATASET_DIR = RUNS_DIR / "datasets" / "sim-default"
-"""Where ``wovenskin train`` / ``compare`` keep the default simulated data set."""
-COMPARE_FILE = "compare.json"
 TRAIN_SPLITS = ("grouped", "random")
 LATENCY_REPEATS = 300
-
-
-def default_train_dir(model: str, split: str) -> Path:
-    """Where ``wovenskin train`` puts a model by default: ``runs/models/<model>-<split>``."""
-    return RUNS_DIR / "models" / f"{model}-{split}"
-
-
-def ensure_dataset(
-    data_dir: str | Path | None,
-    progress: ProgressCallback | None = None,
-    workers: int = 2,
-) -> tuple[WindowDataset, bool]:
-    """The data set at ``data_dir``; with ``None``, the default one, generated if missing.
-
-    Returns the data set and whether it was just built.
-    """
-    if data_dir is not None:
-        return open_dataset(data_dir), False
-    if (DEFAULT_DATASET_DIR / "meta.json").is_file():
-        return open_dataset(DEFAULT_DATASET_DIR), False
-    return generate_sim_dataset(DEFAULT_DATASET_DIR, workers=workers, progress=progress), True
-
-
-DEFAULT_EPOCHS = 3
-"""Epochs of the default run: three passes over the 140-recording set (166,600 training
-windows each) take 17-21 minutes on one thread of the project's busy 2-core machine (the
-default model's recipe, see its model card)."""
-
-
-@dataclass(frozen=True)
-class TrainOptions:
-    """Settings of one training run on a data set (see ``train_model``)."""
-
-    epochs: int = DEFAULT_EPOCHS
-    batch_size: int = 64
-    lr: float = 3e-3
-    seed: int = 0
-    patience: int = 5
-    split_seed: int = 0
-    val_fraction: float = DEFAULT_VAL_FRACTION
-    resume: bool = False
-    time_budget_s: float | None = None
-    threads: int = 1
 
 
 def train_on_dataset(
     ds: WindowDataset,
     out_dir: str | Path,
-    model: str = "transformer",
     split: str = "grouped",
-    options: TrainOptions | None = None,
-    hparams: Mapping[str, Any] | None = None,
+    config: TrainConfig | None = None,
     progress: Callable[[TrainEvent], None] | None = None,
 ) -> TrainResult:
-    """Train registry ``model`` on the training side of ``split`` (``grouped`` or ``random``).
+    """Train ``config.model`` on the training side of ``split`` (``grouped`` or ``random``).
 
     The checkpoint (``out_dir``) records the data set's fingerprint and the split next to
     the data set's own description.
     """
-    from wovenskin.training.train import train_model
-
-    options = options or TrainOptions()
+    config = config or TrainConfig()
     if split not in TRAIN_SPLITS:
         raise DatasetError(f"cannot train on split {split!r}; choose {' or '.join(TRAIN_SPLITS)}")
-    chosen = dataset_split(ds, split, seed=options.split_seed, val_fraction=options.val_fraction)
-    meta = {**ds.meta, **split_record(ds, split, chosen, options.split_seed, options.val_fraction)}
+    chosen = dataset_split(ds, split, seed=config.split_seed, val_fraction=config.val_fraction)
+    meta = {**ds.meta, **split_record(ds, split, chosen, config.split_seed, config.val_fraction)}
     return train_model(
-        model,
-        ds.windows,
-        ds.labels,
-        ds.class_names,
-        chosen.train,
-        chosen.val,
-        out_dir,
-        meta,
-        epochs=options.epochs,
-        batch_size=options.batch_size,
-        lr=options.lr,
-        seed=options.seed,
-        patience=options.patience,
-        progress=progress,
-        resume=options.resume,
-        time_budget_s=options.time_budget_s,
-        hparams=hparams,
-        threads=options.threads,
-    )
+        ds.windows, ds.labels, ds.class_names, chosen.train, chosen.val, out_dir, meta, config,
+        progress,
+    )  # fmt: skip
 
 
 # ============================================================================= comparison
@@ -193,14 +115,6 @@ class StreamScore:
 
 def score_on_streams(checkpoint_dir: str | Path, streams: Sequence[Any]) -> StreamScore:
     """Run the live pipeline of the checkpoint's ONNX model on ``streams`` and score events."""
-    from wovenskin.recognition.event_scoring import aggregate, score_stream
-    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
-    from wovenskin.recognition.pipeline import (
-        PipelineSettings,
-        arbiter_settings_for_model,
-        load_stream,
-        run_pipeline,
-    )
 
     recognizer = OnnxRecognizer(checkpoint_dir, threads=1)
     settings = PipelineSettings(arbiter=arbiter_settings_for_model(recognizer))
@@ -218,9 +132,7 @@ def score_on_streams(checkpoint_dir: str | Path, streams: Sequence[Any]) -> Stre
         recall=total.recall,
         f1=total.f1,
         false_per_min=total.false_per_min,
-        median_latency_ms=None
-        if total.median_latency_s is None
-        else 1e3 * total.median_latency_s,
+        median_latency_ms=None if total.median_latency_s is None else 1e3 * total.median_latency_s,
         median_motion_latency_ms=None if motion is None else 1e3 * motion,
     )
 
@@ -321,7 +233,7 @@ def compare_models(
     out_dir: str | Path,
     models: Sequence[str] | None = None,
     splits: Sequence[str] = ("grouped",),
-    options: TrainOptions | None = None,
+    config: TrainConfig | None = None,
     hparams: Mapping[str, Mapping[str, Any]] | None = None,
     latency_repeats: int = LATENCY_REPEATS,
     progress: Callable[[str, TrainEvent], None] | None = None,
@@ -337,15 +249,10 @@ def compare_models(
     also runs the whole live pipeline on them (:func:`score_on_streams`): event F1, false
     activations per minute and latency, the figures that matter to a user.
     """
-    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
-    from wovenskin.training.checkpoint import load_checkpoint
-    from wovenskin.training.models import MODEL_REGISTRY, count_parameters
-    from wovenskin.training.timing import measure_latency, one_core
-
     models = list(models or MODEL_REGISTRY)
     unknown = [m for m in models if m not in MODEL_REGISTRY]
     if unknown or not models:
-        raise ValueError(
+        raise ConfigError(
             f"unknown model(s) {', '.join(unknown) or '(none given)'}; known: "
             f"{', '.join(MODEL_REGISTRY)}"
         )
@@ -353,10 +260,10 @@ def compare_models(
     bad = [s for s in splits if s not in TRAIN_SPLITS]
     if bad or not splits:
         raise DatasetError(f"unknown split(s) {', '.join(bad) or '(none)'}; use grouped, random")
-    options = options or TrainOptions()
+    config = config or TrainConfig()
     extra = sorted(set(hparams or {}) - set(models))
     if extra:
-        raise ValueError(f"hyperparameters given for model(s) not compared: {', '.join(extra)}")
+        raise ConfigError(f"hyperparameters given for model(s) not compared: {', '.join(extra)}")
     hparams = {m: dict((hparams or {}).get(m, {})) for m in models}
     out = Path(out_dir)
     rows = []
@@ -370,12 +277,11 @@ def compare_models(
                 checkpoint,
                 model,
                 split,
-                options,
-                hparams[model],
+                replace(config, model=model, hparams=hparams[model]),
                 None if progress is None else _labelled(progress, f"{model} / {split}"),
             )
             train_s = time.monotonic() - started
-            report = evaluate_on_dataset(checkpoint, ds, split, seed=options.split_seed)
+            report = evaluate_on_dataset(checkpoint, ds, split, seed=config.split_seed)
             report_dir = checkpoint / f"eval-{split}"
             write_report(report, report_dir)
             if on_report is not None:
@@ -400,7 +306,7 @@ def compare_models(
 
     first = splits[0]
     recognizers = {m: OnnxRecognizer(out / first / m, threads=1) for m in models}
-    val = dataset_split(ds, first, seed=options.split_seed, val_fraction=options.val_fraction).val
+    val = dataset_split(ds, first, seed=config.split_seed, val_fraction=config.val_fraction).val
     pick = np.random.default_rng(0).choice(val, size=min(32, val.size), replace=False)
     pool = np.asarray(ds.windows[np.sort(pick)], dtype=np.float32)[:, np.newaxis]
     with one_core():
@@ -417,13 +323,13 @@ def compare_models(
         data_dir=str(ds.path) if ds.path is not None else "",
         splits=splits,
         rows=rows,
-        options=asdict(options),
+        options={k: v for k, v in to_dict(config).items() if k != "captures"},
         hparams=hparams,
         latency_repeats=latency_repeats,
         recipe=_recipe_of(ds),
     )
     out.mkdir(parents=True, exist_ok=True)
-    (out / COMPARE_FILE).write_text(json.dumps(comparison.to_dict(), indent=1) + "\n", "utf-8")
+    (out / COMPARE_FILE).write_text(dumps(comparison.to_dict(), indent=1, allow_nan=True) + "\n")
     return comparison
 
 
@@ -439,91 +345,3 @@ def _labelled(
     progress: Callable[[str, TrainEvent], None], label: str
 ) -> Callable[[TrainEvent], None]:
     return lambda event: progress(label, event)
-
-
-# ================================================================================ display
-
-
-class TrainProgressDisplay:
-    """Rich display of training: a bar per epoch (running loss), a line per finished epoch.
-
-    Use as a context manager; call it with ``(event)`` or ``(label, event)`` (the label
-    names the run, e.g. ``"bilstm / grouped"``, when several train one after another).
-    """
-
-    def __init__(self, console: Console) -> None:
-        self.console = console
-        self._progress = Progress(
-            TextColumn("{task.description}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TextColumn("loss {task.fields[loss]:.4f}"),
-            TimeElapsedColumn(),
-            TimeRemainingColumn(),
-            console=console,
-            transient=True,
-        )
-        self._task: Any = None
-        self._key: tuple[str, int] | None = None
-        self._best: dict[str, tuple[float, float]] = {}
-
-    def __enter__(self) -> TrainProgressDisplay:
-        self._progress.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._progress.stop()
-
-    def __call__(self, label_or_event: str | TrainEvent, event: TrainEvent | None = None) -> None:
-        if event is None:
-            label, event = "", label_or_event  # type: ignore[assignment]
-        else:
-            label = str(label_or_event)
-        assert event is not None and not isinstance(event, str)
-        key = (label, event.epoch)
-        if key != self._key:
-            if self._task is not None:
-                self._progress.remove_task(self._task)
-            prefix = f"{label}  " if label else ""
-            self._task = self._progress.add_task(
-                f"{prefix}epoch {event.epoch}/{event.epochs}", total=event.batches, loss=event.loss
-            )
-            self._key = key
-        self._progress.update(self._task, completed=event.batch, loss=event.loss)
-        if event.kind == "epoch" and event.record is not None:
-            self._progress.console.print(self._epoch_line(label, event), highlight=False)
-
-    def _epoch_line(self, label: str, event: TrainEvent) -> str:
-        r = event.record
-        assert r is not None
-        best_acc, best_loss = self._best.get(label, (-1.0, float("inf")))
-        improved = r.val_accuracy > best_acc or (
-            r.val_accuracy == best_acc and r.val_loss < best_loss
-        )
-        if improved:
-            self._best[label] = (r.val_accuracy, r.val_loss)
-        prefix = f"{label}  " if label else ""
-        return (
-            f"{prefix}epoch {r.epoch:>3}/{event.epochs} loss {r.train_loss:.4f} "
-            f"train {100 * r.train_accuracy:6.2f}% val {100 * r.val_accuracy:6.2f}% "
-            f"F1 {r.val_macro_f1:.4f} val loss {r.val_loss:.4f} lr {r.lr:.1e} "
-            f"{r.seconds:4.0f} s" + (" [green]best[/]" if improved else "")
-        )
-
-
-def dataset_progress(console: Console, description: str) -> tuple[Progress, ProgressCallback]:
-    """A Rich progress bar over recordings, and the ``progress(done, total)`` that drives it."""
-    bar = Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=console,
-    )
-    task = bar.add_task(description, total=None)
-
-    def update(done: int, total: int) -> None:
-        bar.update(task, completed=done, total=total)
-
-    return bar, update

@@ -31,18 +31,21 @@ peak above the floor (a property the tests check).
 
 :func:`build_model` creates a model from a registry name (``"transformer"``, ``"bilstm"``,
 ``"tcn"``) and hyperparameters; :func:`resolve_hparams` completes hyperparameters with the
-model's defaults, so a checkpoint pins every one of them.
+model's defaults, so a checkpoint pins every one of them.  A new model is one
+:class:`WindowClassifier` subclass and one :data:`MODEL_REGISTRY` entry.
 """
 
 from __future__ import annotations
 
 import inspect
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import torch
 from torch import nn
+
+from wovenskin.errors import ConfigError
 
 
 def _check_dims(rows: int, cols: int, window: int, n_classes: int) -> None:
@@ -60,8 +63,14 @@ LEVEL_EPS = 1e-3
 """Added to the normalised peak before the log that gives the window level."""
 
 
-class _InputNormalized(nn.Module):
-    """Base of all models: the grid/window contract, input scale and window normalisation."""
+class WindowClassifier(nn.Module):
+    """Base of all models: the grid/window contract, input scale and window normalisation.
+
+    A new model derives from it, takes ``(rows, cols, window, n_classes, **hparams)`` with
+    a default for every hyperparameter, calls :meth:`_normalized` first in ``forward``,
+    and gets one entry in :data:`MODEL_REGISTRY`: training, comparison, checkpoints, the
+    ONNX export and the benchmarks then know it by that name.
+    """
 
     def __init__(
         self,
@@ -158,7 +167,7 @@ def sinusoidal_encoding(length: int, dim: int) -> torch.Tensor:
     return encoding
 
 
-class ConvTransformer(_InputNormalized):
+class ConvTransformer(WindowClassifier):
     """Convolutional stem per frame, positional encoding, transformer encoder, MLP head.
 
     Dropout is off by default: the training set is large and seen only about three times,
@@ -216,7 +225,7 @@ class ConvTransformer(_InputNormalized):
         return self.head(encoded.mean(dim=1))
 
 
-class BiLSTM(_InputNormalized):
+class BiLSTM(WindowClassifier):
     """Bidirectional LSTM over flattened frames (plus the window level); mean of the top
     layer's outputs -> linear."""
 
@@ -271,7 +280,7 @@ class _CausalBlock(nn.Module):
         return self.act(x + self.dropout(y))
 
 
-class TemporalConvNet(_InputNormalized):
+class TemporalConvNet(WindowClassifier):
     """Per-frame stem, dilated causal residual blocks over time, last step -> MLP head."""
 
     def __init__(
@@ -309,12 +318,13 @@ class TemporalConvNet(_InputNormalized):
         return self.head(pooled)
 
 
-MODEL_REGISTRY: dict[str, Callable[..., nn.Module]] = {
+MODEL_REGISTRY: dict[str, type[WindowClassifier]] = {
     "transformer": ConvTransformer,
     "bilstm": BiLSTM,
     "tcn": TemporalConvNet,
 }
-"""Registry names -> model classes, in the order the comparison table lists them."""
+"""Registry names -> model classes, in the order the comparison table lists them; the
+one place a model is named (``wovenskin train --model``, ``compare --models``)."""
 
 
 def build_model(
@@ -336,7 +346,7 @@ _SHAPE_ARGUMENTS = ("rows", "cols", "window", "n_classes")
 def resolve_hparams(name: str, hparams: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """``hparams`` completed with the defaults of model ``name``; unknown names are refused."""
     if name not in MODEL_REGISTRY:
-        raise ValueError(f"unknown model {name!r}; known: {', '.join(MODEL_REGISTRY)}")
+        raise ConfigError(f"unknown model {name!r}; known: {', '.join(MODEL_REGISTRY)}")
     parameters = inspect.signature(MODEL_REGISTRY[name]).parameters
     defaults = {
         key: p.default
@@ -346,7 +356,7 @@ def resolve_hparams(name: str, hparams: Mapping[str, Any] | None = None) -> dict
     given = dict(hparams or {})
     unknown = sorted(set(given) - set(defaults))
     if unknown:
-        raise ValueError(
+        raise ConfigError(
             f"unknown hyperparameter(s) {', '.join(unknown)} for model {name!r}; "
             f"known: {', '.join(defaults)}"
         )

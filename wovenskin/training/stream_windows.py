@@ -3,7 +3,7 @@
 The live recogniser slides a ``W``-frame window over the conditioned stream one frame at a
 time, so it sees every phase of every touch: the hand hovering, the landing, the pause
 before the motion, the characteristic motion, the fingers resting afterwards and the
-lift-off.  This module (the ``stream`` recipe of :class:`~.windows.WindowSettings`) draws
+lift-off.  This module (the ``stream`` recipe of :class:`~.window_settings.WindowSettings`) draws
 training windows from exactly those positions and labels each one by its content:
 
 - the gesture's class when the window holds at least ``min_motion_frames`` frames of the
@@ -35,11 +35,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from wovenskin.training.window_settings import SOURCE_CODES, WindowSettings
 from wovenskin.training.windows import (
-    SOURCE_CODES,
     FrameEvents,
     WindowBatch,
-    WindowSettings,
     canvas_starts,
     gather_windows,
     quiet_frames,

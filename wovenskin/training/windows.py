@@ -69,109 +69,11 @@ before their last one, so an event that begins too early to allow that is skippe
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
-SOURCE_NAMES: tuple[str, ...] = (
-    "gesture_plain",
-    "gesture_overlay",
-    "invalid_plain",
-    "invalid_overlay",
-    "idle",
-    "partial_overlay",
-    "partial_onset",
-    "capture",
-    "still",
-)
-"""How a window was made, indexed by :attr:`WindowBatch.sources` (see the module doc).
-
-``capture`` marks a window cut from a labelled capture (:mod:`~.datasets`); ``still`` a
-window of fingers resting before or after a gesture's motion (the ``stream`` recipe,
-:mod:`~.stream_windows`)."""
-
-RECIPES = ("stream", "overlay")
-"""Ways of drawing training windows (:attr:`WindowSettings.recipe`)."""
-
-SOURCE_CODES: dict[str, int] = {name: code for code, name in enumerate(SOURCE_NAMES)}
-
-
-@dataclass(frozen=True)
-class WindowSettings:
-    """How windows are cut and augmented (frames of the recording's rate; see module doc).
-
-    ``recipe`` picks how windows are drawn: ``"stream"`` (default) cuts plain windows at
-    every position of the stream and labels each by what it shows
-    (:mod:`~.stream_windows`, using ``min_motion_frames`` and ``motion_lag_frames``);
-    ``"overlay"`` is the paper's augmentation described in this module's doc.
-    """
-
-    recipe: str = "stream"
-    window_frames: int = 30
-    min_segment_frames: int = 10
-    max_partial_frames: int = 8
-    overlay_fraction: float = 0.5
-    invalid_overlay_fraction: float = 0.5
-    rest_context_frames: int = 20
-    quiet_margin_frames: int = 30
-    invalid_mix: tuple[float, float, float] = (0.4, 0.25, 0.35)  # events, idle, partial/still
-    min_motion_frames: int = 6
-    motion_lag_frames: int = 6
-
-    def __post_init__(self) -> None:
-        if self.recipe not in RECIPES:
-            raise ValueError(f"recipe must be one of {', '.join(RECIPES)}, got {self.recipe!r}")
-        for name, least in (("min_motion_frames", 1), ("motion_lag_frames", 0)):
-            value = getattr(self, name)
-            if not (isinstance(value, int | np.integer) and value >= least):
-                raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
-        for name in ("window_frames", "min_segment_frames", "max_partial_frames"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | np.integer) and value >= 1):
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        for name in ("rest_context_frames", "quiet_margin_frames"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | np.integer) and value >= 0):
-                raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
-        if not self.max_partial_frames < self.min_segment_frames <= self.window_frames:
-            raise ValueError(
-                "need max_partial_frames < min_segment_frames <= window_frames, got "
-                f"{self.max_partial_frames}, {self.min_segment_frames}, {self.window_frames}"
-            )
-        for name in ("overlay_fraction", "invalid_overlay_fraction"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and 0.0 <= value <= 1.0):
-                raise ValueError(f"{name} must lie in [0, 1], got {value!r}")
-        mix = tuple(float(v) for v in self.invalid_mix)
-        if len(mix) != 3 or not all(np.isfinite(v) and v >= 0 for v in mix) or sum(mix) <= 0:
-            raise ValueError(
-                "invalid_mix must be 3 non-negative weights (events, idle, partial) with a "
-                f"positive sum, got {self.invalid_mix!r}"
-            )
-        object.__setattr__(self, "invalid_mix", mix)
-
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        d["invalid_mix"] = list(self.invalid_mix)
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict) -> WindowSettings:
-        """Build from a dict; missing keys take defaults, unknown keys are an error.
-
-        A non-empty dict without ``recipe`` describes a data set made before recipes
-        existed, which all used the paper's ``overlay`` recipe.
-        """
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"unknown window setting(s): {', '.join(unknown)}")
-        values = dict(d)
-        if values and "recipe" not in values:
-            values["recipe"] = "overlay"
-        if "invalid_mix" in values:
-            values["invalid_mix"] = tuple(values["invalid_mix"])
-        return cls(**values)
+from wovenskin.training.window_settings import SOURCE_CODES, WindowSettings
 
 
 @dataclass
@@ -527,44 +429,3 @@ class _Sampler:
             labels=np.zeros(0, dtype=np.int16),
             sources=np.zeros(0, dtype=np.int8),
         )
-
-
-def capture_window_ends(length: int, window_frames: int, stride: int) -> np.ndarray:
-    """Last frames of the windows cut from a capture of ``length`` valid frames.
-
-    Windows end every ``stride`` frames from the first full window on, and one always ends
-    at the capture's last frame, so with ``stride <= window_frames`` every frame is
-    covered.  A capture shorter than the window gives one window ending at its last frame
-    (see :func:`capture_windows`).
-    """
-    if length < 1 or window_frames < 1 or stride < 1:
-        raise ValueError(
-            f"need length, window_frames and stride >= 1, got {length}, {window_frames}, {stride}"
-        )
-    if length <= window_frames:
-        return np.array([length - 1], dtype=np.int64)
-    ends = np.arange(window_frames - 1, length, stride, dtype=np.int64)
-    if ends[-1] != length - 1:
-        ends = np.append(ends, length - 1)
-    return ends
-
-
-def capture_windows(frames: np.ndarray, length: int, window_frames: int, stride: int) -> np.ndarray:
-    """Windows ``(N, W, R, C)`` float32 of one capture's first ``length`` frames.
-
-    Window ends follow :func:`capture_window_ends`.  A capture shorter than the window is
-    padded with zeros in front (the value of "no touch" once normalised), like a live
-    window that began before the capture.
-    """
-    frames = np.asarray(frames)
-    if frames.ndim != 3 or not 1 <= length <= len(frames):
-        raise ValueError(
-            f"need capture frames (T, R, C) and 1 <= length <= T, got {frames.shape} and "
-            f"length {length}"
-        )
-    ends = capture_window_ends(length, window_frames, stride)
-    pad = max(0, window_frames - length)
-    valid = np.asarray(frames[:length], dtype=np.float32)
-    if pad:
-        valid = np.concatenate([np.zeros((pad, *frames.shape[1:]), np.float32), valid])
-    return gather_windows(valid, ends + pad, window_frames)
