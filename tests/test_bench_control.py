@@ -14,18 +14,21 @@ from typer.testing import CliRunner
 from wovenskin.bench import control as bench_control
 from wovenskin.bench.control import (
     LATENCY_TARGET_S,
+    ControlBenchResult,
+    GestureLatency,
+    _summarise_latencies,
+    bench_ik,
+    run_control_benchmark,
+)
+from wovenskin.bench.stops import (
     STOP_SAFETY_TARGET_S,
     STOP_TARGET_MEDIAN_S,
     STOP_TARGET_WORST_S,
-    ControlBenchResult,
-    GestureLatency,
+    FakeTechmanArms,
     StopCase,
     StopMeasurement,
-    _summarise_latencies,
-    bench_ik,
     bench_stops,
     measure_stop,
-    run_control_benchmark,
     stop_cases,
     summarise_stops,
 )
@@ -91,7 +94,7 @@ def test_without_a_model_only_ik_is_measured(monkeypatch) -> None:
     def missing(path=None):
         raise shipped.ModelNotFoundError("the shipped default model is missing")
 
-    monkeypatch.setattr(shipped, "resolve_model_dir", missing)
+    monkeypatch.setattr(bench_control, "load_recognizer", missing)
     result = run_control_benchmark(loop_seconds=1.0, ik_steps=20, stops=False)
     assert result.ik_steps == 20 and result.loop_ticks == 0 and result.latency_gestures == 0
     assert "not measured: the shipped default model is missing" in result.notes[0]
@@ -209,8 +212,6 @@ def test_a_real_time_robot_is_measured_through_the_same_chain() -> None:
 def test_stop_times_through_the_fake_techman_controller() -> None:
     """The same measurement runs on the Techman client against a fresh fake controller per
     case (real time over loopback): the arm moved at the end and came to rest."""
-    from wovenskin.bench.control import FakeTechmanArms, StopCase, bench_stops
-
     cases = [StopCase("translate", "+x", 0.05, 0.3, "release")]
     with FakeTechmanArms() as arms:
         (measured,) = bench_stops(arms, cases)
@@ -221,7 +222,5 @@ def test_stop_times_through_the_fake_techman_controller() -> None:
 
 
 def test_unknown_stop_robot_is_refused() -> None:
-    from wovenskin.bench.control import run_control_benchmark
-
     with pytest.raises(ValueError, match="neither 'sim' nor 'techman-fake'"):
         run_control_benchmark(loop_seconds=0, streams=0, ik_steps=2, stop_robot="ur")

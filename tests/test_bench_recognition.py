@@ -9,15 +9,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from wovenskin.bench import conditions as suite
 from wovenskin.bench import recognition as bench
-from wovenskin.bench.recognition import (
-    CONDITIONS,
-    TARGETS,
-    condition_names,
-    make_stream,
-    run_recognition_benchmark,
-    stream_seed,
-)
+from wovenskin.bench.conditions import CONDITIONS, condition_names, make_stream, stream_seed
+from wovenskin.bench.recognition import TARGETS, run_recognition_benchmark
 from wovenskin.cli import app
 from wovenskin.recognition.event_scoring import score_stream
 from wovenskin.recognition.pipeline import (
@@ -82,7 +77,7 @@ EXPECTED = {
 def test_conditions_are_the_documented_suite() -> None:
     assert list(CONDITIONS) == list(EXPECTED)
     for name, condition in CONDITIONS.items():
-        assert f"``{name}``" in bench.__doc__, name
+        assert f"``{name}``" in suite.__doc__, name
         assert condition.description
     assert condition_names(None) == list(CONDITIONS)
     # A subset keeps the suite's order; unknown names are refused in one line.

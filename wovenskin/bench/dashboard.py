@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 from rich.table import Table
 
+from wovenskin.bench.results import figure_table
 from wovenskin.gestures import GESTURE_NAMES
 from wovenskin.runtime.session import open_session
 from wovenskin.sim.motion import minimum_jerk
@@ -107,9 +108,7 @@ class DashboardBenchResult:
                 "mouse_success": success}  # fmt: skip
 
     def table(self) -> Table:
-        table = Table(title="wovenskin bench dashboard: sim skin + sim TM5-900, over the socket")
-        table.add_column("figure")
-        table.add_column("value", justify="right")
+        table = figure_table("wovenskin bench dashboard: sim skin + sim TM5-900, over the socket")
         table.add_row(
             f"page states ({self.idle_seconds:g} s idle, asked {self.ui_rate_hz:g}/s)",
             f"{self.states_per_s:.1f} /s",

@@ -31,7 +31,8 @@ import numpy as np
 from wovenskin.gestures import INVALID
 from wovenskin.signal.conditioner import condition_recording
 from wovenskin.signal.config import ConditioningConfig
-from wovenskin.sim.physics import TYPICAL_GAIN_PF
+from wovenskin.sim.physics import TYPICAL_GAIN_PF, SkinPhysics
+from wovenskin.sim.stream import simulate_stream
 
 PHANTOM_LEAD_S = 0.05
 """Touched this long before an event's first contact is no phantom (hover)."""
@@ -178,9 +179,6 @@ def evaluate_seed(
     seed: int, seconds: float = 60.0, config: ConditioningConfig | None = None
 ) -> SeedDetection:
     """Simulate ``seconds`` of stream ``seed``, condition it and score the detection."""
-    from wovenskin.sim.physics import SkinPhysics
-    from wovenskin.sim.stream import simulate_stream
-
     config = config if config is not None else ConditioningConfig()
     physics = SkinPhysics.sample_typical(np.random.default_rng(seed))
     stream = simulate_stream(seconds, seed, physics=physics)

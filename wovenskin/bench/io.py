@@ -20,15 +20,17 @@ from __future__ import annotations
 
 import platform
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from datetime import UTC, datetime
 
 import numpy as np
 from rich.table import Table
 
+from wovenskin.bench.results import BenchResult
 from wovenskin.signal.calibration import calibrate
 from wovenskin.signal.conditioner import Conditioner
 from wovenskin.signal.config import ConditioningConfig
+from wovenskin.sim.stream import simulate_stream
 from wovenskin.skin.layout import ROW_MAJOR, SkinLayout
 from wovenskin.skin.protocol import FrameMessage, StreamDecoder, encode_message
 from wovenskin.training.timing import one_core
@@ -38,7 +40,7 @@ LIVE_BLOCK_FRAMES = 4  # frames that arrive between two 20 ms polls at 200 Hz
 
 
 @dataclass
-class IoBenchResult:
+class IoBenchResult(BenchResult):
     frames: int
     rows: int
     cols: int
@@ -55,9 +57,6 @@ class IoBenchResult:
     ratio_realtime_frame_by_frame: float
     cpu: str
     date: str
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
     def table(self) -> Table:
         table = Table(title=f"wovenskin bench io: {self.rows}x{self.cols} skin, one core")
@@ -86,8 +85,6 @@ class IoBenchResult:
 
 def bench_frames(n_frames: int, layout: SkinLayout, seed: int = 0) -> tuple[np.ndarray, float]:
     """A simulated stream long enough for ``n_frames`` frames (raw pF, ``[row, col]``)."""
-    from wovenskin.sim.stream import simulate_stream
-
     rate = 200.0
     stream = simulate_stream(n_frames / rate + 0.01, seed, layout=layout)
     return np.asarray(stream.frames[:n_frames], dtype=np.float32), stream.sample_rate_hz

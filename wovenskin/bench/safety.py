@@ -18,12 +18,14 @@ from __future__ import annotations
 import argparse
 import logging
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import numpy as np
 from rich.table import Table
 
+from wovenskin.bench.results import BenchResult, figure_table
 from wovenskin.control.safety import SafetyLayer, SafetyLimits
+from wovenskin.errors import ConfigError
 from wovenskin.robots.sim import SimRobot, tm5_900
 
 
@@ -110,7 +112,7 @@ JOINT_6_SPEEDS_DEG = (30.0, 60.0, 100.0, 148.0)
 
 
 @dataclass
-class SafetyBenchResult:
+class SafetyBenchResult(BenchResult):
     """The probe's figures: joint 6's clearance per speed and the random-twist worst case."""
 
     episodes: int
@@ -119,13 +121,8 @@ class SafetyBenchResult:
     joint_6_clearance_deg: dict[str, float] = field(default_factory=dict)  # speed -> clearance
     caps: CapsProbe = field(default_factory=CapsProbe)
 
-    def to_dict(self) -> dict:
-        return asdict(self)
-
     def table(self) -> Table:
-        table = Table(title="wovenskin bench safety: the safety layer on the simulated arm")
-        table.add_column("figure")
-        table.add_column("value", justify="right")
+        table = figure_table("wovenskin bench safety: the safety layer on the simulated arm")
         for speed, clearance in self.joint_6_clearance_deg.items():
             table.add_row(
                 f"joint 6 driven at {speed} deg/s toward its limit: closest approach",
@@ -148,7 +145,7 @@ class SafetyBenchResult:
 def run_safety_benchmark(episodes: int = 40, seed: int = 0) -> SafetyBenchResult:
     """The whole probe (module docstring), with the safety layer's stop logging muted."""
     if episodes < 1:
-        raise ValueError(f"episodes must be at least 1, got {episodes}")
+        raise ConfigError(f"episodes must be at least 1, got {episodes}")
     previous = logging.root.manager.disable
     logging.disable(logging.WARNING)  # one line per safety stop otherwise
     try:

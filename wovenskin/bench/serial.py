@@ -11,18 +11,19 @@ machine are pessimistic.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 from rich.table import Table
 
+from wovenskin.bench.results import BenchResult, figure_table
 from wovenskin.sim.fake_device import FakeSkinDevice
 from wovenskin.skin.frames import Frame, SourceEvent
 from wovenskin.skin.serial_source import SerialSkinSource
 
 
 @dataclass
-class SerialBenchResult:
+class SerialBenchResult(BenchResult):
     frames: int
     bad_frames: int
     dropped_frames: int
@@ -31,13 +32,8 @@ class SerialBenchResult:
     stall_detect_ms_max: float
     stall_ms_setting: float
 
-    def to_dict(self) -> dict:
-        return asdict(self)
-
     def table(self) -> Table:
-        table = Table(title="wovenskin bench serial: fake device over a pty, 200 Hz binary")
-        table.add_column("figure")
-        table.add_column("value", justify="right")
+        table = figure_table("wovenskin bench serial: fake device over a pty, 200 Hz binary")
         table.add_row("frames received", str(self.frames))
         table.add_row("bad / dropped frames", f"{self.bad_frames} / {self.dropped_frames}")
         table.add_row("stalls reported", str(self.stalls))

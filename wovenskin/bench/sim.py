@@ -8,11 +8,12 @@ large palm/forearm contacts of the invalid set), on one core.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 from rich.table import Table
 
+from wovenskin.bench.results import BenchResult
 from wovenskin.sim.performances import perform
 from wovenskin.sim.person import Person
 from wovenskin.sim.physics import SkinModel, SkinPhysics
@@ -30,13 +31,10 @@ FAMILIES = {
 
 
 @dataclass
-class SimBenchResult:
+class SimBenchResult(BenchResult):
     stream_seconds: float
     stream_x_realtime: float
     families: dict[str, float]
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
     def table(self) -> Table:
         table = Table(title="wovenskin bench sim: 10x10 skin at 200 Hz, one core")

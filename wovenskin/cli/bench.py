@@ -17,6 +17,7 @@ from wovenskin.cli.app import (
     user_errors,
     warn,
 )
+from wovenskin.errors import ConfigError
 
 
 @bench_app.command("io")
@@ -238,7 +239,7 @@ def bench_dashboard(
     from wovenskin.bench.dashboard import run_dashboard_benchmark
 
     if swipes < 1 or idle_seconds <= 0 or rounds < 0 or mouse_rounds < 0:
-        raise ValueError(
+        raise ConfigError(
             "--swipes must be >= 1, --idle-seconds positive, --rounds and --mouse-rounds >= 0"
         )
     with err_console.status("benchmarking the dashboard..."):
