@@ -20,6 +20,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from wovenskin.errors import ConfigError
 from wovenskin.gestures import CLASS_NAMES, INVALID
 from wovenskin.robots.base import Pose
 
@@ -42,7 +43,7 @@ class MotionSettings:
 
     def __post_init__(self) -> None:
         if self.frame not in ("tool", "base"):
-            raise ValueError(f"frame must be 'tool' or 'base', got {self.frame!r}")
+            raise ConfigError(f"frame must be 'tool' or 'base', got {self.frame!r}")
         for name in (
             "linear_speed",
             "angular_speed",
@@ -53,9 +54,9 @@ class MotionSettings:
         ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ValueError(f"{name} must be a number, got {value!r}")
+                raise ConfigError(f"{name} must be a number, got {value!r}")
             if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+                raise ConfigError(f"{name} must be a positive finite number, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -103,7 +104,7 @@ class ActionMapping:
         try:
             text = path.read_text(encoding="utf-8")
         except OSError as exc:
-            raise ValueError(f"{path}: cannot read the mapping file ({exc.strerror})") from None
+            raise ConfigError(f"{path}: cannot read the mapping file ({exc.strerror})") from None
         return cls.from_text(text, str(path))
 
     @classmethod
@@ -112,7 +113,7 @@ class ActionMapping:
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{source}: not valid TOML ({exc})") from None
+            raise ConfigError(f"{source}: not valid TOML ({exc})") from None
         _check_keys(data, {"motion", "poses", "gestures"}, "", source)
         motion = _table(data, "motion", source)
         poses = _table(data, "poses", source)
@@ -121,15 +122,15 @@ class ActionMapping:
         _check_keys(poses, {"hold_to_run"}, "poses.", source)
         hold_to_run = poses.get("hold_to_run", True)
         if not isinstance(hold_to_run, bool):
-            raise ValueError(f"{source}: poses.hold_to_run must be true or false")
+            raise ConfigError(f"{source}: poses.hold_to_run must be true or false")
         actions: dict[str, Action] = {}
         for gesture, spec in gestures.items():
             key = f"gestures.{gesture}"
             if gesture not in CLASS_NAMES:
-                raise ValueError(f"{source}: {key}: unknown gesture {gesture!r}")
+                raise ConfigError(f"{source}: {key}: unknown gesture {gesture!r}")
             action = _parse_action(spec, hold_to_run, key, source)
             if action is not None and gesture == INVALID:
-                raise ValueError(f"{source}: {key}: 'invalid' never starts an action; use 'none'")
+                raise ConfigError(f"{source}: {key}: 'invalid' never starts an action; use 'none'")
             if action is not None:
                 actions[gesture] = action
         return cls(actions, settings, source)
@@ -169,7 +170,7 @@ _ANGULAR_KEYS = ("angular_speed", "angular_accel", "angular_jerk")  # degrees in
 def _table(data: dict[str, Any], key: str, source: str) -> dict[str, Any]:
     value = data.get(key, {})
     if not isinstance(value, dict):
-        raise ValueError(f"{source}: {key} must be a table")
+        raise ConfigError(f"{source}: {key} must be a table")
     return value
 
 
@@ -177,7 +178,7 @@ def _check_keys(table: dict[str, Any], allowed: set[str], prefix: str, source: s
     for key in table:
         if key not in allowed:
             expected = ", ".join(sorted(allowed))
-            raise ValueError(f"{source}: {prefix}{key}: unknown key (expected one of {expected})")
+            raise ConfigError(f"{source}: {prefix}{key}: unknown key (expected one of {expected})")
 
 
 def _motion_settings(motion: dict[str, Any], source: str) -> MotionSettings:
@@ -185,7 +186,7 @@ def _motion_settings(motion: dict[str, Any], source: str) -> MotionSettings:
     values: dict[str, Any] = {}
     frame = motion.get("frame", "tool")
     if frame not in ("tool", "base"):
-        raise ValueError(f"{source}: motion.frame must be 'tool' or 'base', got {frame!r}")
+        raise ConfigError(f"{source}: motion.frame must be 'tool' or 'base', got {frame!r}")
     values["frame"] = frame
     for key in (*_LINEAR_KEYS, *_ANGULAR_KEYS):
         if key not in motion:
@@ -193,14 +194,14 @@ def _motion_settings(motion: dict[str, Any], source: str) -> MotionSettings:
         value = motion[key]
         number = isinstance(value, int | float) and not isinstance(value, bool)
         if not (number and math.isfinite(value) and value > 0.0):
-            raise ValueError(f"{source}: motion.{key} must be a positive number, got {value!r}")
+            raise ConfigError(f"{source}: motion.{key} must be a positive number, got {value!r}")
         values[key] = math.radians(value) if key in _ANGULAR_KEYS else float(value)
     return MotionSettings(**values)
 
 
 def _parse_action(spec: Any, hold_to_run: bool, key: str, source: str) -> Action | None:
     if not isinstance(spec, str):
-        raise ValueError(f"{source}: {key} must be a string such as 'translate +z'")
+        raise ConfigError(f"{source}: {key} must be a string such as 'translate +z'")
     words = spec.split()
     if words == ["none"]:
         return None
@@ -208,11 +209,11 @@ def _parse_action(spec: Any, hold_to_run: bool, key: str, source: str) -> Action
         return TwistAction(words[0], _parse_axis(words[1], key, source))  # type: ignore[arg-type]
     if len(words) == 2 and words[0] == "pose":
         if words[1] not in POSE_NAMES:
-            raise ValueError(
+            raise ConfigError(
                 f"{source}: {key}: unknown pose {words[1]!r} (expected initial or home)"
             )
         return PoseAction(words[1], hold_to_run)  # type: ignore[arg-type]
-    raise ValueError(
+    raise ConfigError(
         f"{source}: {key}: cannot read {spec!r} "
         "(expected 'translate <axis>', 'rotate <axis>', 'pose initial|home' or 'none')"
     )
@@ -222,7 +223,7 @@ def _parse_axis(text: str, key: str, source: str) -> np.ndarray:
     sign = -1.0 if text.startswith("-") else 1.0
     name = text[1:] if text[:1] in "+-" and len(text) > 1 else text
     if name not in AXES:
-        raise ValueError(f"{source}: {key}: bad axis {text!r} (expected +x, -x, +y, -y, +z or -z)")
+        raise ConfigError(f"{source}: {key}: bad axis {text!r} (expected +x, -x, +y, -y, +z or -z)")
     axis = np.zeros(3)
     axis[AXES[name]] = sign
     return axis

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from wovenskin.errors import ConfigError
 from wovenskin.robots.base import N_JOINTS, Pose, Robot, RobotError
 
 POSE_NAMES = ("initial", "home")
@@ -59,9 +60,9 @@ class PoseStore:
         try:
             data = tomllib.loads(store.path.read_text(encoding="utf-8"))
         except OSError as exc:
-            raise ValueError(f"{store.path}: cannot read the pose file ({exc.strerror})") from None
+            raise ConfigError(f"{store.path}: cannot read the pose file ({exc.strerror})") from None
         except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{store.path}: not valid TOML ({exc})") from None
+            raise ConfigError(f"{store.path}: not valid TOML ({exc})") from None
         for name, table in data.items():
             store._poses[name] = _parse_pose(name, table, store.path)
         return store
@@ -81,9 +82,9 @@ class PoseStore:
         _check_name(name)
         joints = np.array(q, dtype=float)
         if joints.shape != (N_JOINTS,) or not np.all(np.isfinite(joints)):
-            raise ValueError(f"pose {name!r}: q must be {N_JOINTS} finite joint angles")
+            raise ConfigError(f"pose {name!r}: q must be {N_JOINTS} finite joint angles")
         if not isinstance(tcp, Pose):
-            raise ValueError(f"pose {name!r}: tcp must be a Pose, got {type(tcp).__name__}")
+            raise ConfigError(f"pose {name!r}: tcp must be a Pose, got {type(tcp).__name__}")
         pose = NamedPose(name, joints, tcp)
         self._poses[name] = pose
         return pose
@@ -120,31 +121,31 @@ def set_pose_from_robot(store: PoseStore, name: str, robot: Robot) -> NamedPose:
 
 def _check_name(name: str) -> None:
     if name not in POSE_NAMES:
-        raise ValueError(f"unknown pose name {name!r} (expected initial or home)")
+        raise ConfigError(f"unknown pose name {name!r} (expected initial or home)")
 
 
 def _parse_pose(name: str, table: object, path: Path) -> NamedPose:
     if name not in POSE_NAMES:
-        raise ValueError(f"{path}: {name}: unknown pose name (expected initial or home)")
+        raise ConfigError(f"{path}: {name}: unknown pose name (expected initial or home)")
     if not isinstance(table, dict):
-        raise ValueError(f"{path}: {name} must be a table with q, position and quat")
+        raise ConfigError(f"{path}: {name} must be a table with q, position and quat")
     sizes = {"q": N_JOINTS, "position": 3, "quat": 4}
     values: dict[str, np.ndarray] = {}
     for key in table:
         if key not in sizes:
-            raise ValueError(f"{path}: {name}.{key}: unknown key (expected q, position, quat)")
+            raise ConfigError(f"{path}: {name}.{key}: unknown key (expected q, position, quat)")
     for key, size in sizes.items():
         raw = table.get(key)
         numbers = isinstance(raw, list) and all(
             isinstance(v, int | float) and not isinstance(v, bool) for v in raw
         )
         if not (numbers and len(raw) == size and all(math.isfinite(v) for v in raw)):
-            raise ValueError(f"{path}: {name}.{key} must be a list of {size} finite numbers")
+            raise ConfigError(f"{path}: {name}.{key} must be a list of {size} finite numbers")
         values[key] = np.array(raw, dtype=float)
     try:
         tcp = Pose(values["position"], values["quat"])
     except ValueError as exc:
-        raise ValueError(f"{path}: {name}: {exc}") from None
+        raise ConfigError(f"{path}: {name}: {exc}") from None
     return NamedPose(name, values["q"], tcp)
 
 

@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from wovenskin.errors import ConfigError
+
 
 def _vector(values: object, size: int) -> np.ndarray:
     return np.asarray(values, dtype=float).reshape(size).copy()
@@ -31,18 +33,18 @@ class SafetyLimits:
         lower = _vector(self.workspace_lower, 3)
         upper = _vector(self.workspace_upper, 3)
         if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
-            raise ValueError("workspace box bounds must be finite")
+            raise ConfigError("workspace box bounds must be finite")
         if not np.all(lower < upper):
-            raise ValueError("workspace box: every lower bound must be below its upper bound")
+            raise ConfigError("workspace box: every lower bound must be below its upper bound")
         object.__setattr__(self, "workspace_lower", lower)
         object.__setattr__(self, "workspace_upper", upper)
         for name in ("max_linear_speed", "max_angular_speed", "watchdog_s", "box_horizon_s",
                      "joint_horizon_s", "arm_reach", "assumed_stop_time_s"):  # fmt: skip
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} must be a positive number, got {value!r}")
+                raise ConfigError(f"{name} must be a positive number, got {value!r}")
         if not (math.isfinite(self.joint_margin) and self.joint_margin >= 0.0):
-            raise ValueError(f"joint_margin must be >= 0, got {self.joint_margin!r}")
+            raise ConfigError(f"joint_margin must be >= 0, got {self.joint_margin!r}")
 
     def in_box(self, position: np.ndarray, tolerance: float = 0.0) -> bool:
         """Whether ``position`` lies in the workspace box (grown by ``tolerance``)."""

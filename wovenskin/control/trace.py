@@ -18,6 +18,7 @@ from typing import IO
 
 import numpy as np
 
+from wovenskin.errors import DataError
 from wovenskin.outputs import open_new
 from wovenskin.robots.base import RobotState
 
@@ -103,8 +104,8 @@ def read_trace(path: str | os.PathLike) -> list[dict]:
             try:
                 record = json.loads(line)
             except json.JSONDecodeError as exc:
-                raise ValueError(f"{path}:{number}: not JSON ({exc.msg})") from None
+                raise DataError(f"{path}:{number}: not JSON ({exc.msg})") from None
             if not isinstance(record, dict) or tuple(record) != TRACE_KEYS:
-                raise ValueError(f"{path}:{number}: a trace line needs exactly {TRACE_KEYS}")
+                raise DataError(f"{path}:{number}: a trace line needs exactly {TRACE_KEYS}")
             records.append(record)
     return records

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from wovenskin.errors import ConfigError
 from wovenskin.robots.base import JointLimits
 from wovenskin.robots.dh import DHLink, LinkLook, chain_frames, mjcf_from_dh
 
@@ -121,5 +122,5 @@ def ur_model(name: str) -> URModel:
     """The model called ``name`` (``ur3e``, ``ur5e``, ``ur10e``, ``ur16e``); ValueError if none."""
     key = name.strip().lower()
     if key not in UR_MODELS:
-        raise ValueError(f"unknown UR model {name!r}; known: {', '.join(UR_MODELS)}")
+        raise ConfigError(f"unknown UR model {name!r}; known: {', '.join(UR_MODELS)}")
     return UR_MODELS[key]

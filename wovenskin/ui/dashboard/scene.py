@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from wovenskin.robots.base import Robot
 from wovenskin.skin.layout import SkinLayout
 
 _GEOM_TYPES = {
@@ -76,8 +77,6 @@ class ArmScene:
     @classmethod
     def for_robot(cls, robot: object) -> ArmScene | None:
         """The scene a backend declares (``RobotCapabilities.scene``), or ``None``."""
-        from wovenskin.robots.base import Robot
-
         if not isinstance(robot, Robot):
             return None
         scene = robot.capabilities().scene
