@@ -1,4 +1,8 @@
-"""``wovenskin bench ...``: benchmarks that print measured figures and ratios."""
+"""``wovenskin bench ...``: benchmarks that print measured figures and ratios.
+
+Each command imports its benchmark when it runs: the benchmarks pull in the simulator,
+MuJoCo, ONNX Runtime or torch, which every other command would otherwise load at start.
+"""
 
 from __future__ import annotations
 

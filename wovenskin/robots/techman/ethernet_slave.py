@@ -31,6 +31,7 @@ from enum import IntEnum
 
 import numpy as np
 
+from wovenskin.io import dumps
 from wovenskin.robots.techman.protocol import CommError, Packet, PacketError
 
 
@@ -223,12 +224,8 @@ def _field(content: bytes, offset: int, what: str) -> tuple[bytes, int]:
 
 def encode_json(items: Mapping[str, object]) -> bytes:
     """JSON content of ``items``: ``[{"Item": name, "Value": value}, ...]``."""
-    entries = []
-    for name, value in items.items():
-        if isinstance(value, np.ndarray):
-            value = value.tolist()
-        entries.append({"Item": name, "Value": value})
-    return json.dumps(entries).encode("utf-8")
+    entries = [{"Item": name, "Value": value} for name, value in items.items()]
+    return dumps(entries).encode("utf-8")
 
 
 def decode_json(content: bytes) -> dict[str, object]:
