@@ -65,12 +65,8 @@ def test_defaults_fill_only_the_options_a_spec_leaves_unset(tmp_path) -> None:
 
 def test_a_recording_holds_the_conditioning_and_the_given_settings(tmp_path) -> None:
     out = tmp_path / "r.wsrec"
-    chain = open_live_pipeline(
-        "sim:seed=2,speed=0",
-        recognizer=ContactMeans("push"),
-        record=out,
-        recorded={"session": {"robot": "sim"}},
-    )
+    chain = open_live_pipeline("sim:seed=2,speed=0", recognizer=ContactMeans("push"))
+    chain.record(out, settings={"session": {"robot": "sim"}})
     assert chain.live_skin.recorder is chain.recorder is not None
     chain.live_skin.start()
     try:
@@ -93,10 +89,29 @@ class EightByEight(ContactMeans):
             raise ValueError(f"the model needs an 8x8 skin, got {rows}x{cols}")
 
 
-def test_a_chain_that_cannot_be_built_leaves_no_recording(tmp_path) -> None:
-    out = tmp_path / "r.wsrec"
+def test_the_model_checks_the_skin_it_is_wired_to() -> None:
     with pytest.raises(ValueError, match="8x8"):
-        open_live_pipeline("sim:speed=0", recognizer=EightByEight("push"), record=out)
-    assert not out.exists()
+        open_live_pipeline("sim:speed=0", recognizer=EightByEight("push"))
     chain = open_live_pipeline("sim:speed=0,rows=8,cols=8", recognizer=EightByEight("push"))
     assert chain.pipeline is not None and chain.pipeline.streaming.shape == (8, 8)
+
+
+def test_a_recording_started_with_the_skin_records_from_the_first_frame(tmp_path) -> None:
+    out = tmp_path / "v.wsrec"
+    chain = open_live_skin(
+        "sim:seed=4,speed=0",
+        record=out,
+        provenance=lambda info: {"skin_id": info.device_id},
+        recorded={"plan": "none"},
+    )
+    chain.live_skin.start()
+    try:
+        for _ in range(200):
+            chain.live_skin.step(timeout=0.05)
+            if chain.live_skin.stats().good_frames >= 50:
+                break
+    finally:
+        chain.close()
+    recording = read_recording(out)
+    assert recording.provenance["skin_id"] == "sim-seed-4"
+    assert recording.settings["plan"] == "none" and recording.seq[0] == 0

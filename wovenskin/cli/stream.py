@@ -17,18 +17,25 @@ from wovenskin.cli.app import (
 )
 from wovenskin.errors import DataError
 
+# The options both commands share (one definition each).
+MODEL = typer.Option(None, help=MODEL_HELP)
+EVERY = typer.Option(1, help="Run the model on every K-th frame's window.")
+DWELL_MS = typer.Option(100.0, help="Dwell time before a gesture acts.")
+MIN_PROBABILITY = typer.Option(
+    None, help="Least class probability that counts (default: the model's recommendation)."
+)
+THREADS = typer.Option(1, help="ONNX Runtime threads for the model.")
+
 
 @app.command()
 @user_errors
 def replay(
     stream: Path = typer.Argument(..., help="Labelled-stream .npz (or native .wsrec)."),
-    model: Path = typer.Option(None, help=MODEL_HELP),
-    every: int = typer.Option(1, help="Run the model on every K-th frame's window."),
-    dwell_ms: float = typer.Option(100.0, help="Dwell time before a gesture acts."),
-    min_probability: float = typer.Option(
-        None, help="Least class probability that counts (default: the model's recommendation)."
-    ),
-    threads: int = typer.Option(1, help="ONNX Runtime threads for the model."),
+    model: Path = MODEL,
+    every: int = EVERY,
+    dwell_ms: float = DWELL_MS,
+    min_probability: float = MIN_PROBABILITY,
+    threads: int = THREADS,
     json_out: bool = typer.Option(False, "--json", help="Print only the command log (JSON lines)."),
 ) -> None:
     """Run calibration, conditioning, recogniser and arbiter on a stream; print the commands."""
@@ -59,13 +66,11 @@ def replay(
 @user_errors
 def eval_stream(
     streams: list[Path] = typer.Argument(..., help="Labelled-stream .npz files with events."),
-    model: Path = typer.Option(None, help=MODEL_HELP),
-    every: int = typer.Option(1, help="Run the model on every K-th frame's window."),
-    dwell_ms: float = typer.Option(100.0, help="Dwell time before a gesture acts."),
-    min_probability: float = typer.Option(
-        None, help="Least class probability that counts (default: the model's recommendation)."
-    ),
-    threads: int = typer.Option(1, help="ONNX Runtime threads for the model."),
+    model: Path = MODEL,
+    every: int = EVERY,
+    dwell_ms: float = DWELL_MS,
+    min_probability: float = MIN_PROBABILITY,
+    threads: int = THREADS,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Score the pipeline's commands against labelled events: event F1, false activations."""

@@ -34,7 +34,7 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -53,9 +53,7 @@ from wovenskin.recording.files import read_stream
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.signal.conditioner import LiveConditioner
 from wovenskin.signal.config import ConditioningConfig
-
-if TYPE_CHECKING:
-    from wovenskin.signal.live_skin import LiveBlock
+from wovenskin.signal.live_skin import LiveBlock
 
 RESET = "reset"
 """Reason of the change that ends an active command when the pipeline is reset."""

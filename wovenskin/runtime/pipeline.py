@@ -4,8 +4,9 @@ The one place that wires these stages for a live skin.  :func:`open_live_skin` o
 source named by a spec and its :class:`~wovenskin.signal.live_skin.LiveSkin` (views, the
 guided recorder); :func:`open_live_pipeline` adds the recogniser and the
 :class:`~wovenskin.recognition.pipeline.LivePipeline` with the model's own conditioning
-and execution rules (robot sessions).  Either can record every raw frame to a ``.wsrec``
-file.  Nothing is started: the caller starts the skin (or the session built on it).
+and execution rules (robot sessions).  :meth:`LiveChain.record` records every raw frame
+to a ``.wsrec`` file.  Nothing is started: the caller starts the skin (or the session
+built on it).
 """
 
 from __future__ import annotations
@@ -109,10 +110,6 @@ def open_live_pipeline(
     model: str | Path | None = None,
     recognizer: Any = None,
     settings: PipelineSettings | None = None,
-    record: str | Path | None = None,
-    overwrite: bool = False,
-    provenance: Provenance | None = None,
-    recorded: Mapping[str, Any] | None = None,
     on_message: Callable[[str], None] | None = None,
     defaults: Mapping[str, Any] | None = None,
 ) -> LiveChain:
@@ -120,8 +117,8 @@ def open_live_pipeline(
 
     ``recognizer`` (default: the one of checkpoint directory ``model``, or the shipped
     model) sets the conditioning; ``settings`` default to the model's recommended execution
-    rules.  The recording, if any, starts once every stage is built (a stage that cannot be
-    built leaves no file).  Other arguments as for :func:`open_live_skin`."""
+    rules; ``on_message`` and ``defaults`` as for :func:`open_live_skin`.  Record with
+    :meth:`LiveChain.record` once everything the recording is for has been built."""
     recognizer = recognizer if recognizer is not None else load_recognizer(model)
     chain = open_live_skin(
         skin,
@@ -132,6 +129,4 @@ def open_live_pipeline(
     chain.recognizer = recognizer
     settings = settings if settings is not None else pipeline_settings_for_model(recognizer)
     chain.pipeline = LivePipeline.for_live_skin(chain.live_skin, recognizer, settings)
-    if record is not None:
-        chain.record(record, overwrite=overwrite, provenance=provenance, settings=recorded)
     return chain
