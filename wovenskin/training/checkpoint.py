@@ -43,7 +43,7 @@ from wovenskin.recognition.checkpoint_meta import (
     write_meta,
 )
 from wovenskin.recognition.onnx_runtime import export_onnx as _export_onnx
-from wovenskin.training.models import MODEL_REGISTRY, build_model
+from wovenskin.training.models import MODEL_REGISTRY, build_model, resolve_hparams
 
 __all__ = [
     "CheckpointError",
@@ -116,7 +116,7 @@ def load_checkpoint(directory: str | Path) -> tuple[nn.Module, CheckpointMeta]:
     hparams = dict(meta.hparams)
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
-        if "level_input" not in hparams:
+        if "level_input" not in hparams and "level_input" in resolve_hparams(meta.model_name):
             # Checkpoints made before ``level_input`` existed always fed the level.
             lstm_in = state.get("lstm.weight_ih_l0")
             hparams["level_input"] = any(k.startswith("level.") for k in state) or (

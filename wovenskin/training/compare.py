@@ -275,7 +275,6 @@ def compare_models(
             result = train_on_dataset(
                 ds,
                 checkpoint,
-                model,
                 split,
                 replace(config, model=model, hparams=hparams[model]),
                 None if progress is None else _labelled(progress, f"{model} / {split}"),

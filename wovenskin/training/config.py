@@ -106,7 +106,7 @@ class TrainConfig:
     # -- the run
     threads: Positive = 1
     resume: bool = False
-    time_budget_s: PositiveFloat | None = None
+    time_budget_s: NonNegative | None = None
     """No epoch starts that would likely overrun it (at least one always runs)."""
 
     # -- the validation split of a window data set
