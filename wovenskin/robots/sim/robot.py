@@ -175,14 +175,6 @@ class SimRobot(Robot):
     def joint_limits(self) -> JointLimits:
         return tm5_900.JOINT_LIMITS
 
-    def jacobian(self, q: np.ndarray) -> np.ndarray:
-        """The 6x6 base-frame Jacobian of the TCP at ``q`` (the safety layer bounds speeds)."""
-        return tm5_900.jacobian(q)
-
-    def forward_kinematics(self, q: np.ndarray) -> np.ndarray:
-        """The 4x4 TCP pose in the base frame at ``q``."""
-        return tm5_900.forward_kinematics(q)
-
     def capabilities(self) -> RobotCapabilities:
         """The TM5-900 model and drawing, its home and initial poses, how it stops (a ramp
         over :data:`STOP_TIME_S`) and how it follows a twist: joint velocities held for

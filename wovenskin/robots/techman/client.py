@@ -246,14 +246,6 @@ class TechmanRobot(TechmanConnection, Robot):
     def joint_limits(self) -> JointLimits:
         return self._limits
 
-    def jacobian(self, q: np.ndarray) -> np.ndarray:
-        """The TM5-900 model's 6x6 base-frame TCP Jacobian (used by the safety layer)."""
-        return tm5_900.jacobian(q)
-
-    def forward_kinematics(self, q: np.ndarray) -> np.ndarray:
-        """The TM5-900 model's TCP pose (4x4, base frame) at ``q``, with the model's gripper."""
-        return tm5_900.forward_kinematics(q)
-
     def capabilities(self) -> RobotCapabilities:
         """The TM5-900 model and drawing. No stop profile is declared (the safety layer
         then assumes its conservative stop time) and no default poses (a real arm goes
