@@ -7,7 +7,7 @@ import json
 import pytest
 from typer.testing import CliRunner
 
-from wovenskin.bench.dashboard import run_dashboard_benchmark
+from wovenskin.bench.dashboard import _mouse_path, run_dashboard_benchmark
 from wovenskin.cli import app
 
 
@@ -57,8 +57,6 @@ def test_gestures_drawn_with_a_mouse_are_scored_per_gesture_and_sampling() -> No
 
 def test_a_sparse_mouse_stroke_sends_3_to_13_samples_along_the_drawn_path() -> None:
     import numpy as np
-
-    from wovenskin.bench.dashboard import _mouse_path
 
     rng = np.random.default_rng(3)
     t, xy, _ = _mouse_path("swipe_left", rng)

@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wovenskin.robots.base import Pose, RobotState, finite_vector
+from wovenskin.robots.base import Pose, Robot, RobotCapabilities, RobotState, finite_vector
+from wovenskin.robots.sim import SimRobot, tm5_900
+from wovenskin.robots.techman import TechmanRobot
 
 
 def test_finite_vector_accepts_numbers_and_names_what_is_wrong() -> None:
@@ -55,8 +57,6 @@ def test_state_reports_the_linear_tcp_speed() -> None:
 
 
 def test_a_backend_declares_nothing_unless_it_says_so() -> None:
-    from wovenskin.robots.base import Robot, RobotCapabilities
-
     assert Robot.capabilities(object()) == RobotCapabilities()  # type: ignore[arg-type]
     empty = RobotCapabilities()
     assert empty.kinematics is None and empty.scene is None and empty.default_poses == {}
@@ -64,8 +64,6 @@ def test_a_backend_declares_nothing_unless_it_says_so() -> None:
 
 
 def test_the_stop_time_comes_from_a_ramp_or_a_deceleration() -> None:
-    from wovenskin.robots.base import RobotCapabilities
-
     twist = np.array([0.3, 0.0, 0.4, 0.0, 1.0, 0.0])  # 0.5 m/s, 1 rad/s
     assert RobotCapabilities(stop_time_s=0.1).stop_time(twist) == pytest.approx(0.1)
     decel = RobotCapabilities(stop_deceleration=(2.0, 4.0))
@@ -87,17 +85,12 @@ def test_the_stop_time_comes_from_a_ramp_or_a_deceleration() -> None:
     ],
 )
 def test_a_bad_declaration_is_refused_in_one_line(kwargs, match) -> None:
-    from wovenskin.robots.base import RobotCapabilities
-
     with pytest.raises(ValueError, match=match) as info:
         RobotCapabilities(**kwargs)
     assert "\n" not in str(info.value)
 
 
 def test_every_backend_declares_its_kinematics_and_scene() -> None:
-    from wovenskin.robots.sim import SimRobot, tm5_900
-    from wovenskin.robots.techman import TechmanRobot
-
     for robot in (SimRobot(), TechmanRobot("127.0.0.1")):  # built, never connected
         declared = robot.capabilities()
         assert declared.kinematics is not None and declared.scene is not None

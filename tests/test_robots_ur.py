@@ -8,8 +8,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from wovenskin.control.safety import SafetyLayer
 from wovenskin.robots.base import Pose, RobotError
+from wovenskin.robots.registry import make_robot
 from wovenskin.robots.ur import URRobot
+from wovenskin.robots.ur.models import ur_model
 from wovenskin.robots.ur.robot import pose_from_ur, pose_to_ur
 
 
@@ -254,8 +257,6 @@ def test_pose_conversion_round_trip() -> None:
 def _consistent(model_name: str, tool_z: float = 0.15) -> tuple[FakeControl, FakeReceive]:
     """Stand-ins whose reported TCP is the model's flange at the reported joints plus a
     ``tool_z`` tool along the flange's z axis, as a real arm with that TCP reports it."""
-    from wovenskin.robots.ur.models import ur_model
-
     control, receive = FakeControl(), FakeReceive()
     pose = ur_model(model_name).flange_pose(np.asarray(receive.q))
     tip = pose[:3, 3] + tool_z * pose[:3, 2]
@@ -296,9 +297,6 @@ def test_the_declaration_gives_the_drawing_and_how_the_arm_stops() -> None:
 def test_without_a_model_the_safety_layer_refuses_the_arm_unless_degraded(caplog) -> None:
     import logging
 
-    from wovenskin.control.safety import SafetyLayer
-    from wovenskin.robots.registry import make_robot
-
     with pytest.raises(RobotError, match=r"ur:HOST\?model=ur5e.*safety=degraded") as info:
         SafetyLayer(make_robot("ur:10.0.0.5"))
     assert "\n" not in str(info.value)
@@ -319,8 +317,6 @@ def test_the_wrong_model_is_refused_on_connect() -> None:
 
 
 def test_with_a_named_model_the_safety_layer_refuses_a_move_through_the_floor() -> None:
-    from wovenskin.control.safety import SafetyLayer
-
     control, receive = _consistent("ur5e")
     arm = URRobot("h", model="ur5e", control_factory=lambda h: control,
                   receive_factory=lambda h: receive)  # fmt: skip

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from wovenskin.control.safety import SafetyLimits
 from wovenskin.runtime.session import open_session
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.server import BackgroundServer
@@ -461,8 +462,6 @@ def test_a_sparsely_sampled_mouse_swipe_is_one_finger(page) -> None:
 @pytest.fixture()
 def boxed_page(browser, tmp_path):
     """The page on a session whose workspace box floor lies 15 mm below the home TCP."""
-    from wovenskin.control.safety import SafetyLimits
-
     floor = 0.32105 - 0.015  # the simulated TM5-900's home TCP z, less 15 mm
 
     def opener(skin: str, robot: str):

@@ -5,7 +5,8 @@ from rich.console import Console
 
 from wovenskin.signal.contacts import Contact
 from wovenskin.skin.frames import SourceStats
-from wovenskin.ui.terminal import PALETTE, heatmap, skin_panel, status_table
+from wovenskin.ui.terminal import PALETTE, heatmap, live_screen, skin_panel, status_table
+from wovenskin.ui.view import run_view
 
 
 def _styles_by_row(text, cols, cell_width=3, cell_height=2):
@@ -56,8 +57,6 @@ def test_view_quits_on_q_as_run_does() -> None:
 
     from rich.console import Console
 
-    from wovenskin.ui.view import run_view
-
     keys = iter(["", "", "q"])
     console = Console(file=io.StringIO(), width=120)
     result = run_view("sim:speed=0,auto=0", seconds=30.0, fps=25.0, console=console,
@@ -71,8 +70,6 @@ def test_a_live_screen_ends_its_line_when_not_on_a_terminal() -> None:
 
     from rich.console import Console
     from rich.text import Text
-
-    from wovenskin.ui.terminal import live_screen
 
     console = Console(file=io.StringIO(), width=80, force_terminal=False)
     with live_screen(console, auto_refresh=False) as live:
