@@ -66,9 +66,7 @@ def test_sample_stream_windows_balances_and_mixes_sources():
     touched[400:460] = True
     ev = _events()
     start, stop = characteristic_spans(ev, np.array([140, -1]), np.array([200, -1]), SETTINGS)
-    batch = sample_stream_windows(
-        signal, touched, ev, start, stop, 50, 40, INVALID, SETTINGS, rng
-    )
+    batch = sample_stream_windows(signal, touched, ev, start, stop, 50, 40, INVALID, SETTINGS, rng)
     assert batch.windows.shape == (90, 30, 4, 5)
     assert (batch.labels[:50] == 0).all() and (batch.labels[50:] == INVALID).all()
     sources = set(batch.sources[50:].tolist())

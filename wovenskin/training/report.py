@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 from rich.table import Table
 
+from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.training.datasets import (
     DatasetError,
     Split,
@@ -204,8 +205,6 @@ def evaluate_on_dataset(
     match the model's grid, window, sample rate, conditioning and class names, else
     ``ValueError``.
     """
-    from wovenskin.recognition.onnx_runtime import OnnxRecognizer
-
     started = time.perf_counter()
     recognizer = OnnxRecognizer(model_dir, threads=threads)
     ds = data_dir if isinstance(data_dir, WindowDataset) else open_dataset(data_dir)

@@ -34,7 +34,6 @@ from wovenskin.training.datasets.writer import (
     RecordingWindows,
     base_meta,
     check_counts,
-    check_dtype,
     check_target,
 )
 from wovenskin.training.window_settings import WindowSettings
@@ -110,15 +109,10 @@ def generate_sim_dataset(
     settings = settings or WindowSettings()
     conditioning = conditioning or ConditioningConfig()
     layout = layout or SkinLayout()
-    dtype = check_dtype(dtype)
-    windowing = WindowingJob(
-        conditioning.to_dict(),
-        settings.to_dict(),
-        CLASS_NAMES,
-        int(windows_per_recording),
-        int(invalid_windows_per_recording),
-        dtype,
+    windowing = WindowingJob.of(
+        conditioning, settings, windows_per_recording, invalid_windows_per_recording, dtype
     )
+    dtype = windowing.dtype
     jobs = [
         _SimJob(i, int(seed), float(seconds_per_recording), layout.to_dict(),
                 float(invalid_fraction), windowing)

@@ -59,6 +59,22 @@ class WindowingJob:
     n_invalid: int
     dtype: str
 
+    @classmethod
+    def of(
+        cls,
+        conditioning: ConditioningConfig,
+        settings: WindowSettings | None,
+        n_gesture: int,
+        n_invalid: int,
+        dtype: str,
+    ) -> WindowingJob:
+        """The job of a data set of the 14 gestures (``settings`` None: the defaults)."""
+        settings = settings or WindowSettings()
+        return cls(
+            conditioning.to_dict(), settings.to_dict(), CLASS_NAMES, int(n_gesture),
+            int(n_invalid), check_dtype(dtype),
+        )  # fmt: skip
+
 
 def window_stream(
     stream: LabelledStream,
@@ -302,15 +318,10 @@ def build_dataset_from_streams(
             raise DatasetError(one_line(exc)) from exc
         conditioning = ConditioningConfig(sample_rate_hz=rate)
     settings = settings or WindowSettings()
-    dtype = check_dtype(dtype)
-    windowing = WindowingJob(
-        conditioning.to_dict(),
-        settings.to_dict(),
-        CLASS_NAMES,
-        int(windows_per_recording),
-        int(invalid_windows_per_recording),
-        dtype,
+    windowing = WindowingJob.of(
+        conditioning, settings, windows_per_recording, invalid_windows_per_recording, dtype
     )
+    dtype = windowing.dtype
     jobs = [
         _StreamJob(i, p, int(seed), persons[i] if persons else None,
                    skins[i] if skins else None, windowing)
