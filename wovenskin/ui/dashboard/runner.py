@@ -4,9 +4,10 @@
 :func:`~wovenskin.runtime.session.open_session` wiring as ``wovenskin run``), steps it on
 a thread at the skin's full rate (200 Hz recognition and control) and, at the page's rate
 (30-60 Hz), stores the newest :func:`~wovenskin.ui.dashboard.snapshot.build_snapshot`
-for the server to send: latest only, so a slow browser never slows control.  Page commands (:meth:`submit`) are queued
-and carried out on the session thread between steps; virtual touches (:meth:`touch`) go
-straight to the simulated skin's physics, never to the recogniser or the robot.
+for the server to send: latest only, so a slow browser never slows control.  Page
+commands (:meth:`submit`) are queued and carried out on the session thread between
+steps; virtual touches (:meth:`touch`) go straight to the simulated skin's physics, never
+to the recogniser or the robot.
 
 A command that cannot be carried out (a bad value, a robot that refuses, a skin that is
 not simulated) is reported as one line in the page's messages; it never stops the loop.
