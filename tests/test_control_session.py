@@ -25,7 +25,7 @@ from wovenskin.recording.formats import LabelledStream, write_labelled_stream
 from wovenskin.recording.native import read_recording
 from wovenskin.robots.base import Pose, RobotError
 from wovenskin.robots.sim import SimRobot
-from wovenskin.robots.sim.tm5_900 import INITIAL_Q, forward_kinematics
+from wovenskin.robots.sim.tm5_900 import HOME_Q, INITIAL_Q, forward_kinematics
 from wovenskin.runtime.session import open_session
 from wovenskin.runtime.sources import open_source
 from wovenskin.signal.live_skin import LiveSkin
@@ -461,8 +461,6 @@ def _idle_session(tmp_path) -> ControlSession:
 
 
 def test_go_to_pose_runs_to_completion_and_is_refused_while_stopped(tmp_path) -> None:
-    from wovenskin.robots.sim.tm5_900 import HOME_Q
-
     session = _idle_session(tmp_path)
     try:
         session.emergency_stop()

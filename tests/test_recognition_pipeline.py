@@ -17,6 +17,7 @@ from wovenskin.recognition.pipeline import (
     RESET,
     LivePipeline,
     PipelineSettings,
+    arbiter_settings_for_model,
     conditioning_for_model,
     load_recognizer,
     run_pipeline,
@@ -218,8 +219,6 @@ class _MetaOnly:
 
 
 def test_arbiter_settings_follow_the_models_recommendation_unless_overridden() -> None:
-    from wovenskin.recognition.pipeline import arbiter_settings_for_model
-
     recognizer = _MetaOnly({"min_probability": 0.9, "not_a_setting": 1})
     assert arbiter_settings_for_model(recognizer).min_probability == 0.9
     assert arbiter_settings_for_model(recognizer, min_probability=None).min_probability == 0.9

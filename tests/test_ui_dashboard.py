@@ -12,15 +12,23 @@ from stand_ins import ContactMeans
 from starlette.websockets import WebSocketDisconnect
 
 from wovenskin.gestures import CLASS_NAMES
+from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.robots.sim import SimRobot
 from wovenskin.robots.sim.tm5_900 import INITIAL_Q
+from wovenskin.robots.techman import FakeListenNode, TechmanRobot
+from wovenskin.robots.ur import URRobot
+from wovenskin.robots.ur.models import ur_model
 from wovenskin.runtime.session import open_session
+from wovenskin.sim.fake_device import FakeSkinDevice
 from wovenskin.sim.live import Fingertip
+from wovenskin.sim.stream import simulate_stream
 from wovenskin.skin.layout import SkinLayout
+from wovenskin.ui.dashboard import server
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.scene import ArmScene
 from wovenskin.ui.dashboard.server import (
     create_app,
+    loopback_host,
     needs_token,
     parse_touch_message,
     parse_touches,
@@ -190,9 +198,6 @@ def test_switching_the_robot_reopens_the_session(runner) -> None:
 
 
 def test_the_virtual_skin_needs_the_simulated_skin(tmp_path) -> None:
-    from wovenskin.recording.formats import write_labelled_stream
-    from wovenskin.sim.stream import simulate_stream
-
     path = tmp_path / "s.npz"
     write_labelled_stream(path, simulate_stream(3.0, seed=1))
     runner = DashboardRunner(_opener(tmp_path), f"replay:{path}", "sim")
@@ -230,8 +235,6 @@ def test_touch_messages_carry_one_or_several_timed_samples() -> None:
 
 
 def test_other_devices_get_the_machines_network_addresses(monkeypatch) -> None:
-    from wovenskin.ui.dashboard import server
-
     monkeypatch.setattr(server, "lan_addresses", lambda: ["192.168.1.23", "10.0.0.7"])
     url = "http://127.0.0.1:8000/?token=abc"
     assert server.other_device_urls(url, "0.0.0.0") == [
@@ -337,8 +340,6 @@ def test_a_token_guards_every_request_and_the_socket(runner) -> None:
 
 
 def test_a_serial_skin_drives_the_page_and_a_pulled_cable_stops_the_arm(tmp_path) -> None:
-    from wovenskin.sim.fake_device import FakeSkinDevice
-
     device = FakeSkinDevice().start()
     runner = DashboardRunner(_opener(tmp_path), f"serial:{device.port}", "sim")
     try:
@@ -360,17 +361,12 @@ def test_a_serial_skin_drives_the_page_and_a_pulled_cable_stops_the_arm(tmp_path
 
 
 def test_a_techman_arm_is_drawn_with_the_tm5_900_model() -> None:
-    from wovenskin.robots.techman import TechmanRobot
-
     scene = ArmScene.for_robot(TechmanRobot("127.0.0.1"))  # built, never connected
     assert scene is not None and len(scene.poses(INITIAL_Q)) == len(scene.shapes)
 
 
 @pytest.mark.parametrize("model", [None, "ur10e"])
 def test_a_ur_arm_is_drawn_from_its_own_dh_table(model) -> None:
-    from wovenskin.robots.ur import URRobot
-    from wovenskin.robots.ur.models import ur_model
-
     scene = ArmScene.for_robot(URRobot("10.0.0.5", model=model))  # built, never connected
     assert scene is not None
     q = np.array([0.1, -1.2, 1.3, -1.6, -1.57, 0.3])  # as getActualQ reports them
@@ -385,8 +381,6 @@ def test_a_ur_arm_is_drawn_from_its_own_dh_table(model) -> None:
 
 def test_the_page_draws_a_ur_arm_at_the_joints_it_reports(tmp_path) -> None:
     from test_robots_ur import FakeControl, FakeReceive
-
-    from wovenskin.robots.ur import URRobot
 
     receive = FakeReceive()
 
@@ -417,8 +411,6 @@ def test_the_page_draws_a_ur_arm_at_the_joints_it_reports(tmp_path) -> None:
 
 
 def test_a_techman_arm_is_driven_from_the_page_through_its_listen_node(tmp_path) -> None:
-    from wovenskin.robots.techman import FakeListenNode, TechmanRobot
-
     with FakeListenNode() as node:
 
         def opener(skin: str, robot: str):
@@ -503,8 +495,6 @@ def test_only_loopback_host_names_reach_a_server_without_a_token(runner) -> None
     """DNS rebinding: a page from rebind.attacker.example (re-pointed at 127.0.0.1) sends
     its own name as Host and Origin; it gets 403 and its socket is refused, so its
     ``perform swipe_up`` never reaches the arm."""
-    from wovenskin.ui.dashboard.server import loopback_host
-
     app = create_app(runner)
     evil = "rebind.attacker.example:8000"
     client = TestClient(app, base_url=f"http://{evil}")
@@ -531,9 +521,10 @@ def test_only_loopback_host_names_reach_a_server_without_a_token(runner) -> None
         assert not loopback_host(name), name
     # an origin that is not the page's own address is refused on a loopback Host, too
     local = LocalClient(app)
-    with pytest.raises(WebSocketDisconnect), local.websocket_connect(
-        "/ws", headers={"origin": f"http://{evil}"}
-    ) as ws:
+    with (
+        pytest.raises(WebSocketDisconnect),
+        local.websocket_connect("/ws", headers={"origin": f"http://{evil}"}) as ws,
+    ):
         ws.receive_json()
     # with a token (a server on the network) other names are fine: the token guards
     tokened = TestClient(create_app(runner, token="s3cret"), base_url="http://192.168.1.20")

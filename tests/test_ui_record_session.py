@@ -5,7 +5,9 @@ import io
 import numpy as np
 from rich.console import Console
 
+from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.recording.native import read_recording
+from wovenskin.sim.stream import simulate_stream
 from wovenskin.ui.record_session import RecordPlan, run_record_session
 
 
@@ -53,9 +55,6 @@ def test_session_records_frames_calibration_and_labelled_trials(tmp_path):
 
 
 def test_an_ending_source_stops_the_session_and_keeps_the_data(tmp_path):
-    from wovenskin.recording.formats import write_labelled_stream
-    from wovenskin.sim.stream import simulate_stream
-
     src = tmp_path / "short.npz"
     write_labelled_stream(src, simulate_stream(3.0, seed=2))
     out = tmp_path / "r.wsrec"

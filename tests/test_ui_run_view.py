@@ -7,6 +7,7 @@ import io
 from rich.console import Console
 from stand_ins import ContactMeans
 
+from wovenskin.control.safety import SafetyLimits
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.runtime.session import open_session
 from wovenskin.sim.stream import simulate_stream
@@ -82,8 +83,6 @@ def test_the_screen_says_what_holds_the_arm_back_and_when_the_recogniser_is_unsu
     tmp_path,
 ) -> None:
     import numpy as np
-
-    from wovenskin.control.safety import SafetyLimits
 
     home_tcp = np.array([0.5175, -0.1223, 0.32105])  # the simulated TM5-900's starting TCP
     limits = SafetyLimits(workspace_lower=home_tcp - 0.002, workspace_upper=home_tcp + 0.002)
