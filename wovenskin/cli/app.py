@@ -14,6 +14,10 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
+from wovenskin.errors import ConfigError, DeviceError, WovenskinError
+from wovenskin.outputs import CLI_SWITCH, OutputExistsError
+from wovenskin.robots.base import RobotError
+
 app = typer.Typer(
     help="Gesture control of a robot arm with a woven capacitive tactile skin.",
     no_args_is_help=True,
@@ -70,22 +74,50 @@ def _main(
     """Gesture control of a robot arm with a woven capacitive tactile skin."""
 
 
-def user_errors(fn):
-    """Turn expected user errors into one red line and exit code 2.
+# Operating-system errors a user causes and fixes: a path that is missing, taken, not
+# readable or of the wrong kind, a device or host that cannot be reached.  Not bugs.
+USER_OS_ERRORS = (
+    FileNotFoundError,
+    FileExistsError,
+    PermissionError,
+    IsADirectoryError,
+    NotADirectoryError,
+    ConnectionError,
+    TimeoutError,
+)
 
-    An output that exists (:class:`~wovenskin.outputs.OutputExistsError`, raised by every
-    writer) is refused naming ``--overwrite``, the option each writing command has."""
+
+def user_error_message(exc: BaseException) -> str | None:
+    """The one-line message for an error a user can cause and fix, or None for a bug.
+
+    A :class:`~wovenskin.errors.WovenskinError` is one by definition; so are the
+    :data:`USER_OS_ERRORS`.  An output that exists names ``--overwrite``, the switch each
+    writing command has."""
+    if isinstance(exc, OutputExistsError):
+        text = exc.message(CLI_SWITCH)
+    elif isinstance(exc, WovenskinError):
+        text = str(exc)
+    elif isinstance(exc, USER_OS_ERRORS):
+        text = str(exc)
+        if exc.filename is not None and exc.strerror:
+            text = f"{exc.filename}: {exc.strerror}"
+    else:
+        return None
+    return " ".join(text.split()) or type(exc).__name__
+
+
+def user_errors(fn):
+    """Errors a user can cause (:func:`user_error_message`) end as one red line and exit
+    code 2; anything else is a bug and keeps its traceback."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        from wovenskin.outputs import CLI_SWITCH, OutputExistsError
-        from wovenskin.recording.formats import FormatError
-
         try:
             return fn(*args, **kwargs)
-        except (FormatError, ValueError, FileNotFoundError, FileExistsError, OSError) as exc:
-            text = exc.message(CLI_SWITCH) if isinstance(exc, OutputExistsError) else str(exc)
-            message = " ".join(text.split()) or type(exc).__name__
+        except Exception as exc:
+            message = user_error_message(exc)
+            if message is None:
+                raise
             err_console.print(f"[red]error:[/] {escape(message)}", soft_wrap=True, highlight=False)
             raise typer.Exit(2) from None
 
@@ -97,16 +129,15 @@ app.add_typer(pose_app, name="pose")
 
 
 def robot_errors(fn):
-    """Robot errors (one line) end like user errors: a red line and exit code 2."""
+    """A robot's error (:class:`~wovenskin.robots.base.RobotError`) is told as coming from
+    the robot: ``error: robot: ...``."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        from wovenskin.robots.base import RobotError
-
         try:
             return fn(*args, **kwargs)
         except RobotError as exc:
-            raise ValueError(f"robot: {exc}") from None
+            raise DeviceError(f"robot: {exc}") from None
 
     return wrapper
 
@@ -137,12 +168,11 @@ ROBOT_HELP = (
 
 def pipeline_settings(recognizer, every: int, dwell_ms: float, min_probability: float | None):
     """Pipeline settings: the options given, else the model's recommendation, else defaults."""
-    from wovenskin.recognition.pipeline import PipelineSettings, arbiter_settings_for_model
+    from wovenskin.recognition.pipeline import pipeline_settings_for_model  # keeps --help fast
 
-    arbiter = arbiter_settings_for_model(
-        recognizer, dwell_s=dwell_ms / 1000, min_probability=min_probability
+    return pipeline_settings_for_model(
+        recognizer, every, dwell_s=dwell_ms / 1000, min_probability=min_probability
     )
-    return PipelineSettings(every=every, arbiter=arbiter)
 
 
 TORCH_HINT = "pip install 'wovenskin[train]'"
@@ -153,4 +183,4 @@ def require_torch(command: str) -> None:
     import importlib.util
 
     if importlib.util.find_spec("torch") is None:
-        raise ValueError(f"{command} needs PyTorch, which is not installed: {TORCH_HINT}")
+        raise ConfigError(f"{command} needs PyTorch, which is not installed: {TORCH_HINT}")

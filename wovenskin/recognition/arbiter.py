@@ -77,6 +77,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from wovenskin.errors import ConfigError
 from wovenskin.gestures import INVALID
 from wovenskin.skin.layout import DEFAULT_COL_PITCH_MM, DEFAULT_ROW_PITCH_MM
 
@@ -105,7 +106,7 @@ class CommandChange:
 
 def _check_positive(name: str, value: float) -> None:
     if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        raise ConfigError(f"{name} must be a positive finite number, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -121,13 +122,13 @@ class ArbiterSettings:
         _check_positive("dwell_s", self.dwell_s)
         w = self.start_within_s
         if w is not None and not (isinstance(w, int | float) and math.isfinite(w) and w >= 0):
-            raise ValueError(f"start_within_s must be None or a number >= 0, got {w!r}")
+            raise ConfigError(f"start_within_s must be None or a number >= 0, got {w!r}")
         m = self.max_switches
         if m is not None and not (isinstance(m, int) and not isinstance(m, bool) and m >= 0):
-            raise ValueError(f"max_switches must be None or an integer >= 0, got {m!r}")
+            raise ConfigError(f"max_switches must be None or an integer >= 0, got {m!r}")
         p = self.min_probability
         if not (isinstance(p, int | float) and 0.0 <= p <= 1.0):
-            raise ValueError(f"min_probability must lie in [0, 1], got {p!r}")
+            raise ConfigError(f"min_probability must lie in [0, 1], got {p!r}")
 
     def dwell_frames(self, sample_rate_hz: float) -> int:
         """The dwell time in frames (at least 1)."""
@@ -156,7 +157,7 @@ class PerformingSettings:
             _check_positive(name, getattr(self, name))
         change = self.min_pressure_change
         if not (isinstance(change, int | float) and 0.0 < change <= 1.0):
-            raise ValueError(f"min_pressure_change must lie in (0, 1], got {change!r}")
+            raise ConfigError(f"min_pressure_change must lie in (0, 1], got {change!r}")
 
     def span_frames(self, sample_rate_hz: float) -> int:
         """Frames between the two compared frames (at least 1)."""
@@ -261,7 +262,7 @@ class Arbiter:
         _check_positive("sample_rate_hz", sample_rate_hz)
         self.class_names = tuple(str(c) for c in class_names)
         if not self.class_names:
-            raise ValueError("the arbiter needs at least one class name")
+            raise ConfigError("the arbiter needs at least one class name")
         self.settings = settings or ArbiterSettings()
         self.sample_rate_hz = float(sample_rate_hz)
         self.dwell_frames = self.settings.dwell_frames(sample_rate_hz)
