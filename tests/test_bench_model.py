@@ -10,11 +10,13 @@ import torch
 from rich.console import Console
 
 from wovenskin.bench import model as bench_model
-from wovenskin.bench.model import measure_latency, measure_throughput, run_model_benchmark
+from wovenskin.bench.model import measure_throughput, run_model_benchmark
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recognition import shipped
-from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.recognition.checkpoint_meta import CheckpointMeta
+from wovenskin.training.checkpoint import save_checkpoint
 from wovenskin.training.models import build_model, count_parameters
+from wovenskin.training.timing import measure_latency
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 

@@ -25,7 +25,7 @@ from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.signal.conditioner import condition_recording
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinPhysics
+from wovenskin.sim.skin_physics import SkinPhysics
 
 runner = CliRunner()
 SECONDS = 8.0

@@ -15,10 +15,10 @@ from typer.testing import CliRunner
 
 from wovenskin.bench import model as bench_model
 from wovenskin.cli import app
+from wovenskin.recognition.checkpoint_meta import read_meta
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.training import capture_eval, capture_lopo, capture_train, runs
-from wovenskin.training.checkpoint import read_meta
 from wovenskin.training.config import CAPTURE_DEFAULTS
 from wovenskin.training.datasets import generate_sim_dataset, open_dataset
 

@@ -13,12 +13,13 @@ from typer.testing import CliRunner
 from wovenskin.cli import app
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recognition import shipped
+from wovenskin.recognition.checkpoint_meta import CheckpointMeta
 from wovenskin.recognition.commandlog import format_command_log, parse_command_log
 from wovenskin.recognition.pipeline import PipelineSettings, load_recognizer, run_pipeline
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.signal import ConditioningConfig
 from wovenskin.sim.stream import simulate_stream
-from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.training.checkpoint import save_checkpoint
 from wovenskin.training.models import build_model
 
 runner = CliRunner()

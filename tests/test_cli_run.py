@@ -16,11 +16,12 @@ from typer.testing import CliRunner
 from wovenskin.cli import app
 from wovenskin.control.trace import TRACE_KEYS, read_trace
 from wovenskin.gestures import CLASS_NAMES
+from wovenskin.recognition.checkpoint_meta import CheckpointMeta
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.recording.native import read_recording
 from wovenskin.signal import ConditioningConfig
 from wovenskin.sim.stream import simulate_stream
-from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.training.checkpoint import save_checkpoint
 from wovenskin.training.models import build_model
 
 runner = CliRunner()

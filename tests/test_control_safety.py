@@ -16,13 +16,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from wovenskin.control.safety import (
-    SafetyLayer,
-    SafetyLimits,
-    StopEvent,
-    cap_speeds,
-    keep_in_box,
-)
+from wovenskin.control.safety import SafetyLayer
+from wovenskin.control.safety_limits import SafetyLimits, StopEvent, cap_speeds, keep_in_box
 from wovenskin.robots.base import (
     JointLimits,
     Kinematics,

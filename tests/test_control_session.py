@@ -17,7 +17,8 @@ from stand_ins import ContactMeans
 
 from wovenskin.control.mapping import ActionMapping, PoseAction
 from wovenskin.control.poses import PoseStore
-from wovenskin.control.session import ControlSession, SessionSettings
+from wovenskin.control.session import ControlSession
+from wovenskin.control.session_state import SessionSettings
 from wovenskin.control.trace import TRACE_KEYS, TraceWriter
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recognition.pipeline import LivePipeline

@@ -7,8 +7,10 @@ from __future__ import annotations
 import numpy as np
 from stand_ins import ContactMeans
 
-from wovenskin.control.safety import SafetyLayer, SafetyLimits
-from wovenskin.control.session import ControlSession, unsure_line
+from wovenskin.control.safety import SafetyLayer
+from wovenskin.control.safety_limits import SafetyLimits
+from wovenskin.control.session import ControlSession
+from wovenskin.control.session_state import unsure_line
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.robots.sim import SimRobot

@@ -3,7 +3,8 @@
 import numpy as np
 
 from wovenskin.recording.formats import LabelledStream, write_labelled_stream
-from wovenskin.recording.native import RecordingWriter, read_recording
+from wovenskin.recording.native import read_recording
+from wovenskin.recording.writer import RecordingWriter
 from wovenskin.runtime.sources import open_source
 from wovenskin.signal.conditioner import condition_recording
 from wovenskin.signal.config import ConditioningConfig

@@ -213,9 +213,7 @@ def test_rules_hold_for_any_sequence(frames, dwell: int) -> None:
     touched = [f[0] for f in frames]
     performing = [f[1] for f in frames]
     labels = [f[2] for f in frames]
-    arbiter_settings = ArbiterSettings(
-        dwell_s=dwell / RATE, max_switches=None, start_within_s=None
-    )
+    arbiter_settings = ArbiterSettings(dwell_s=dwell / RATE, max_switches=None, start_within_s=None)
     _, changes = run_sequence(labels, touched, performing, arbiter_settings)
     at = {round(c.t * RATE): c for c in changes}
     assert len(at) == len(changes)  # at most one change per frame
@@ -390,7 +388,7 @@ def test_resting_phases_of_simulated_gestures_never_look_performed() -> None:
     # there is measured by `wovenskin bench recognition` (response_x0.1, skin_noisy).
     from dataclasses import replace
 
-    from wovenskin.sim.physics import SkinPhysics
+    from wovenskin.sim.skin_physics import SkinPhysics
 
     physics = replace(SkinPhysics.sample(np.random.default_rng(12)), gain_pf=4.0, c0_pf=20.0)
     stream = simulate_stream(30.0, seed=12, invalid_fraction=0.0, physics=physics)

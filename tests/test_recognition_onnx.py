@@ -13,13 +13,9 @@ import pytest
 import torch
 
 from wovenskin.recognition import onnx_runtime
+from wovenskin.recognition.checkpoint_meta import ONNX_FILE, CheckpointError, CheckpointMeta
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer, export_onnx, softmax
-from wovenskin.training.checkpoint import (
-    ONNX_FILE,
-    CheckpointError,
-    CheckpointMeta,
-    save_checkpoint,
-)
+from wovenskin.training.checkpoint import save_checkpoint
 from wovenskin.training.models import MODEL_REGISTRY, build_model
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out

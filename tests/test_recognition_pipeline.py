@@ -11,6 +11,7 @@ import torch
 
 from wovenskin.gestures import CLASS_NAMES, INVALID
 from wovenskin.recognition.arbiter import DWELL, LIFT_OFF
+from wovenskin.recognition.checkpoint_meta import CheckpointMeta
 from wovenskin.recognition.event_scoring import score_stream
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.recognition.pipeline import (
@@ -28,7 +29,7 @@ from wovenskin.runtime.sources import open_source
 from wovenskin.signal import ConditioningConfig
 from wovenskin.signal.live_skin import LiveBlock, LiveSkin
 from wovenskin.sim.stream import simulate_stream
-from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.training.checkpoint import save_checkpoint
 from wovenskin.training.models import build_model
 
 

@@ -11,10 +11,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from wovenskin.gestures import CLASS_NAMES
+from wovenskin.recognition.checkpoint_meta import CheckpointMeta
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.recognition.streaming import StreamingRecognizer, model_window
 from wovenskin.signal import ConditioningConfig
-from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.training.checkpoint import save_checkpoint
 from wovenskin.training.models import build_model
 
 ROWS, COLS, W = 4, 5, 6

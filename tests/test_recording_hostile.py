@@ -192,8 +192,23 @@ JSON_VALUES = st.recursive(
         st.lists(children, max_size=4),
         st.dictionaries(
             st.sampled_from(
-                ["rows", "cols", "sample_rate_hz", "info", "label", "start_s", "end_s", "t",
-                 "stream", "kind", "extra", "__wsrec_array__", "dtype", "shape", "x"]
+                [
+                    "rows",
+                    "cols",
+                    "sample_rate_hz",
+                    "info",
+                    "label",
+                    "start_s",
+                    "end_s",
+                    "t",
+                    "stream",
+                    "kind",
+                    "extra",
+                    "__wsrec_array__",
+                    "dtype",
+                    "shape",
+                    "x",
+                ]
             ),  # fmt: skip
             children,
             max_size=4,
@@ -216,9 +231,7 @@ ARRAY_SPECS = st.lists(
     ),
     max_size=3,
 )
-FUZZ = settings(
-    max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow]
-)
+FUZZ = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 def _check_all_readers(data: bytes, suffix: str) -> None:

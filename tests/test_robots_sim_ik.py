@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from wovenskin.robots.sim import tm5_900
 from wovenskin.robots.sim.ik import DifferentialIK, IKInfo, SingularityThresholds
-from wovenskin.robots.sim.robot import load_model
+from wovenskin.robots.sim.tm5_900 import load_model
 
 DT = 1.0 / 250.0
 LIMITS = tm5_900.JOINT_LIMITS

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from mujoco_helpers import site_pose
 
 from wovenskin.robots.sim import tm5_900
-from wovenskin.robots.sim.robot import load_model
+from wovenskin.robots.sim.tm5_900 import load_model
 
 LIMITS = tm5_900.JOINT_LIMITS
 

@@ -12,7 +12,8 @@ import pytest
 
 from wovenskin.errors import ConfigError
 from wovenskin.runtime.sources import open_source
-from wovenskin.sim.live import Fingertip, SimulatedSkinSource
+from wovenskin.sim.live import SimulatedSkinSource
+from wovenskin.sim.live_touches import Fingertip
 from wovenskin.skin.frames import Frame, SourceEvent
 from wovenskin.skin.source import SkinSource
 

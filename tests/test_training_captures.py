@@ -13,6 +13,7 @@ import pytest
 
 from tests.conftest import SHARED
 from wovenskin.errors import ConfigError
+from wovenskin.recognition.checkpoint_meta import read_meta
 from wovenskin.recording.formats import (
     LabelledCaptures,
     read_labelled_captures,
@@ -30,7 +31,6 @@ from wovenskin.training.capture_prep import (
     window_ending,
 )
 from wovenskin.training.capture_train import internal_validation, train_on_captures
-from wovenskin.training.checkpoint import read_meta
 from wovenskin.training.config import CAPTURE_DEFAULTS, CAPTURE_HPARAMS, CaptureConfig, TrainConfig
 from wovenskin.training.datasets import CaptureNormalisation
 

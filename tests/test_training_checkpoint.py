@@ -10,18 +10,17 @@ import torch
 
 import wovenskin
 from wovenskin.gestures import CLASS_NAMES
-from wovenskin.signal.config import ConditioningConfig
-from wovenskin.training.checkpoint import (
+from wovenskin.recognition.checkpoint_meta import (
     META_FILE,
     ONNX_FILE,
     WEIGHTS_FILE,
     CheckpointError,
     CheckpointMeta,
     conditioning_differences,
-    load_checkpoint,
     read_meta,
-    save_checkpoint,
 )
+from wovenskin.signal.config import ConditioningConfig
+from wovenskin.training.checkpoint import load_checkpoint, save_checkpoint
 from wovenskin.training.models import build_model, resolve_hparams
 
 

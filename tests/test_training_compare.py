@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from rich.console import Console
 
+from wovenskin.recognition.checkpoint_meta import read_meta
 from wovenskin.training import runs
-from wovenskin.training.checkpoint import read_meta
 from wovenskin.training.compare import compare_models, train_on_dataset
 from wovenskin.training.config import TrainConfig
 from wovenskin.training.datasets import DatasetError, generate_sim_dataset, grouped_split

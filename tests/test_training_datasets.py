@@ -21,7 +21,7 @@ from wovenskin.recording.formats import (
 )
 from wovenskin.recording.native import recording_from_labelled_stream, write_recording
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinPhysics
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.training.datasets import (
     GROUP_KEYS,

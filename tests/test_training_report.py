@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from rich.console import Console
 
+from wovenskin.recognition.checkpoint_meta import read_meta, write_meta
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
-from wovenskin.training.checkpoint import read_meta, write_meta
 from wovenskin.training.compare import train_on_dataset
 from wovenskin.training.config import TrainConfig
 from wovenskin.training.datasets import (

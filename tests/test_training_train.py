@@ -11,15 +11,10 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from wovenskin.recognition.checkpoint_meta import META_FILE, ONNX_FILE, WEIGHTS_FILE, read_meta
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.training import train as train_module
-from wovenskin.training.checkpoint import (
-    META_FILE,
-    ONNX_FILE,
-    WEIGHTS_FILE,
-    load_checkpoint,
-    read_meta,
-)
+from wovenskin.training.checkpoint import load_checkpoint
 from wovenskin.training.config import TrainConfig
 from wovenskin.training.history import CURVE_FILE, HISTORY_FILE, TrainEvent, write_history
 from wovenskin.training.metrics import ClassificationMetrics, ClassScore, classification_metrics

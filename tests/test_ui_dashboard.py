@@ -19,8 +19,8 @@ from wovenskin.robots.techman import FakeListenNode, TechmanRobot
 from wovenskin.robots.ur import URRobot
 from wovenskin.robots.ur.models import ur_model
 from wovenskin.runtime.session import open_session
-from wovenskin.sim.fake_device import FakeSkinDevice
-from wovenskin.sim.live import Fingertip
+from wovenskin.sim.live_touches import Fingertip
+from wovenskin.sim.pty_skin import FakeSkinDevice
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.skin.layout import SkinLayout
 from wovenskin.ui.dashboard import server

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wovenskin.control.safety import SafetyLimits
+from wovenskin.control.safety_limits import SafetyLimits
 from wovenskin.runtime.session import open_session
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.server import BackgroundServer

@@ -7,7 +7,7 @@ import io
 from rich.console import Console
 from stand_ins import ContactMeans
 
-from wovenskin.control.safety import SafetyLimits
+from wovenskin.control.safety_limits import SafetyLimits
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.runtime.session import open_session
 from wovenskin.sim.stream import simulate_stream

@@ -50,7 +50,7 @@ import numpy as np
 from wovenskin.errors import ConfigError
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinPhysics
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.sim.stream import simulate_stream
 
 DEFAULT_SECONDS = 60.0

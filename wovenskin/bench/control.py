@@ -39,14 +39,8 @@ from rich.table import Table
 from wovenskin.bench.results import BenchResult, figure_table
 from wovenskin.bench.stops import (
     STOP_DURATIONS_REAL_TIME_S,
-    STOP_SAFETY_TARGET_S,
-    STOP_TARGET_MEDIAN_S,
-    STOP_TARGET_WORST_S,
     FakeTechmanArms,
-    StopCase,
-    StopMeasurement,
     bench_stops,
-    measure_stop,
     stop_cases,
     stop_row,
     summarise_stops,
@@ -59,25 +53,6 @@ from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.robots.sim import SimRobot
 from wovenskin.runtime.session import open_session
 from wovenskin.sim.stream import simulate_stream
-
-__all__ = [  # the stop-time names are re-exported: callers found them here
-    "STOP_SAFETY_TARGET_S",
-    "STOP_TARGET_MEDIAN_S",
-    "STOP_TARGET_WORST_S",
-    "ControlBenchResult",
-    "FakeTechmanArms",
-    "GestureLatency",
-    "StopCase",
-    "StopMeasurement",
-    "bench_ik",
-    "bench_loop",
-    "bench_stops",
-    "measure_latencies",
-    "measure_stop",
-    "run_control_benchmark",
-    "stop_cases",
-    "summarise_stops",
-]
 
 LATENCY_TARGET_S = 0.2
 MOTION_LINEAR_M_S = 1e-4  # 0.1 mm/s: the arm has started to move

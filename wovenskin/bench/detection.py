@@ -31,7 +31,7 @@ import numpy as np
 from wovenskin.gestures import INVALID
 from wovenskin.signal.conditioner import condition_recording
 from wovenskin.signal.config import ConditioningConfig
-from wovenskin.sim.physics import TYPICAL_GAIN_PF, SkinPhysics
+from wovenskin.sim.skin_physics import TYPICAL_GAIN_PF, SkinPhysics
 from wovenskin.sim.stream import simulate_stream
 
 PHANTOM_LEAD_S = 0.05

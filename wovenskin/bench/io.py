@@ -32,7 +32,8 @@ from wovenskin.signal.conditioner import Conditioner
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.skin.layout import ROW_MAJOR, SkinLayout
-from wovenskin.skin.protocol import FrameMessage, StreamDecoder, encode_message
+from wovenskin.skin.messages import FrameMessage
+from wovenskin.skin.protocol import StreamDecoder, encode_message
 from wovenskin.training.timing import one_core
 
 CHUNK_BYTES = 4096

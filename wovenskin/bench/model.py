@@ -38,16 +38,16 @@ import torch
 from rich.table import Table
 
 from wovenskin.gestures import CLASS_NAMES
-from wovenskin.recognition.onnx_runtime import OnnxRecognizer, export_onnx
-from wovenskin.recognition.shipped import ModelNotFoundError, default_model_dir
-from wovenskin.signal.config import ConditioningConfig
-from wovenskin.training.checkpoint import (
+from wovenskin.recognition.checkpoint_meta import (
     WEIGHTS_FILE,
     CheckpointMeta,
-    load_checkpoint,
     read_meta,
     write_meta,
 )
+from wovenskin.recognition.onnx_runtime import OnnxRecognizer, export_onnx
+from wovenskin.recognition.shipped import ModelNotFoundError, default_model_dir
+from wovenskin.signal.config import ConditioningConfig
+from wovenskin.training.checkpoint import load_checkpoint
 from wovenskin.training.models import MODEL_REGISTRY, build_model, count_parameters, resolve_hparams
 from wovenskin.training.timing import WARMUP_CALLS as WARMUP_CALLS  # re-exported
 from wovenskin.training.timing import measure_latency, one_core

@@ -59,16 +59,6 @@ from wovenskin.recognition.pipeline import (
     run_pipeline,
 )
 
-__all__ = [  # the suite's names are re-exported: callers found them here
-    "CONDITIONS",
-    "TARGETS",
-    "RecognitionBenchResult",
-    "condition_names",
-    "make_stream",
-    "run_recognition_benchmark",
-    "stream_seed",
-]
-
 DEFAULT_BASE_SEED = 9000
 DEFAULT_STREAMS_PER_CONDITION = 3
 

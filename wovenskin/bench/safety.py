@@ -24,7 +24,8 @@ import numpy as np
 from rich.table import Table
 
 from wovenskin.bench.results import BenchResult, figure_table
-from wovenskin.control.safety import SafetyLayer, SafetyLimits
+from wovenskin.control.safety import SafetyLayer
+from wovenskin.control.safety_limits import SafetyLimits
 from wovenskin.errors import ConfigError
 from wovenskin.robots.sim import SimRobot, tm5_900
 

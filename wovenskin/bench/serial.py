@@ -17,7 +17,7 @@ import numpy as np
 from rich.table import Table
 
 from wovenskin.bench.results import BenchResult, figure_table
-from wovenskin.sim.fake_device import FakeSkinDevice
+from wovenskin.sim.pty_skin import FakeSkinDevice
 from wovenskin.skin.frames import Frame, SourceEvent
 from wovenskin.skin.serial_source import SerialSkinSource
 

@@ -16,7 +16,8 @@ from rich.table import Table
 from wovenskin.bench.results import BenchResult
 from wovenskin.sim.performances import perform
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinModel, SkinPhysics
+from wovenskin.sim.physics import SkinModel
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.skin.layout import SkinLayout
 from wovenskin.training.timing import one_core

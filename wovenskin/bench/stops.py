@@ -14,7 +14,8 @@ import numpy as np
 
 from wovenskin.control.mapping import ActionMapping, MotionSettings, TwistAction
 from wovenskin.control.motion import TwistShaper
-from wovenskin.control.safety import SafetyLayer, SafetyLimits
+from wovenskin.control.safety import SafetyLayer
+from wovenskin.control.safety_limits import SafetyLimits
 from wovenskin.robots.base import Robot
 from wovenskin.robots.registry import make_robot
 from wovenskin.robots.sim import SimRobot

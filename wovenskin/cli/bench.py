@@ -115,7 +115,8 @@ def bench_recognition(
         TimeRemainingColumn,
     )
 
-    from wovenskin.bench.recognition import condition_names, run_recognition_benchmark
+    from wovenskin.bench.conditions import condition_names
+    from wovenskin.bench.recognition import run_recognition_benchmark
     from wovenskin.recognition.pipeline import load_recognizer
 
     names = condition_names(conditions)

@@ -60,8 +60,6 @@ from wovenskin.robots.base import (
     finite_vector,
 )
 
-__all__ = ["SafetyLayer", "SafetyLimits", "StopEvent", "cap_speeds", "keep_in_box"]
-
 log = logging.getLogger(__name__)
 
 MOVE_SPEED_TOLERANCE = 1.02  # a running move is stopped above 102 % of the speed cap

@@ -37,30 +37,18 @@ import numpy as np
 from wovenskin.control.mapping import ActionMapping, PoseAction, TwistAction
 from wovenskin.control.motion import TwistShaper
 from wovenskin.control.poses import PoseStore
-from wovenskin.control.safety import SafetyLayer, SafetyLimits
+from wovenskin.control.safety import SafetyLayer
+from wovenskin.control.safety_limits import SafetyLimits
 from wovenskin.control.session_poses import PoseMove, PoseMoves
 from wovenskin.control.session_record import SessionRecording
 from wovenskin.control.session_state import (
-    UNSURE_FLOOR,
-    UNSURE_HOLD_S,
     SessionResult,
     SessionSettings,
     SessionState,
-    unsure_line,
 )
 from wovenskin.control.trace import TraceWriter
 from wovenskin.errors import ConfigError
 from wovenskin.robots.base import Robot, RobotError
-
-__all__ = [
-    "UNSURE_FLOOR",
-    "UNSURE_HOLD_S",
-    "ControlSession",
-    "SessionResult",
-    "SessionSettings",
-    "SessionState",
-    "unsure_line",
-]
 
 log = logging.getLogger(__name__)
 

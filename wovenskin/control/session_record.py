@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from wovenskin.control.session_state import UNSURE_HOLD_S, min_probability_of, unsure_line
-from wovenskin.recording.native import RecordingWriter
+from wovenskin.recording.writer import RecordingWriter
 
 
 class SessionRecording:

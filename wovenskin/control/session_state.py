@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from wovenskin.control.safety import StopEvent
+from wovenskin.control.safety_limits import StopEvent
 from wovenskin.robots.base import RobotState
 
 

@@ -24,8 +24,6 @@ from wovenskin.robots.spec import Backend, RobotOptions, RobotSpec, port_number
 from wovenskin.robots.techman.config import TECHMAN
 from wovenskin.robots.ur.config import UR
 
-__all__ = ["BACKENDS", "RobotSpec", "SpecError", "make_robot", "parse_robot_spec"]
-
 BACKENDS: dict[str, Backend] = {
     "sim": SIM,
     "tm": TECHMAN,

@@ -23,7 +23,7 @@ from wovenskin.recognition.pipeline import (
     load_recognizer,
     pipeline_settings_for_model,
 )
-from wovenskin.recording.native import RecordingWriter
+from wovenskin.recording.writer import RecordingWriter
 from wovenskin.runtime.sources import open_source, skin_spec
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.signal.live_skin import LiveSkin

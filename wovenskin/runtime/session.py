@@ -10,8 +10,9 @@ from typing import Any
 
 from wovenskin.control.mapping import ActionMapping
 from wovenskin.control.poses import PoseStore
-from wovenskin.control.safety import SafetyLimits
-from wovenskin.control.session import ControlSession, SessionSettings
+from wovenskin.control.safety_limits import SafetyLimits
+from wovenskin.control.session import ControlSession
+from wovenskin.control.session_state import SessionSettings
 from wovenskin.control.trace import TraceWriter
 from wovenskin.io import to_jsonable
 from wovenskin.recognition.pipeline import PipelineSettings, load_recognizer

@@ -26,8 +26,6 @@ from wovenskin.skin.messages import SampleDtype
 if TYPE_CHECKING:
     from rich.console import Console
 
-__all__ = ["FakeSkinDevice", "RestingPerson", "run_fake_device"]  # FakeSkinDevice: bench/serial
-
 
 def run_fake_device(
     seconds: float | None = None,

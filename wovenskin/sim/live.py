@@ -30,32 +30,17 @@ import numpy as np
 from wovenskin.errors import ConfigError
 from wovenskin.sim.live_options import DEFAULT_IDLE_S, LOOKAHEAD_S, SimOptions
 from wovenskin.sim.live_touches import (
-    MAX_TOUCH_FORCE_N,
-    MAX_TOUCH_LEAD_S,
-    MAX_TOUCH_SEGMENT_S,
-    MAX_TOUCHES,
-    TOUCH_JITTER_S,
     Fingertip,
     OutsideTouches,
     checked_touches,
 )
 from wovenskin.sim.motion import LEAD_S
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinModel, SkinPhysics
+from wovenskin.sim.physics import SkinModel
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.sim.stream import INITIAL_IDLE_S, EventScheduler, StreamEvent, parse_request
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
-
-__all__ = [
-    "MAX_TOUCHES",
-    "MAX_TOUCH_FORCE_N",
-    "MAX_TOUCH_LEAD_S",
-    "MAX_TOUCH_SEGMENT_S",
-    "TOUCH_JITTER_S",
-    "Fingertip",
-    "SimOptions",
-    "SimulatedSkinSource",
-]
 
 _IDLE_CHUNK_S = 0.05  # idle is rendered in small pieces so that requests start promptly
 _PERFORMANCE_CHUNK_S = 0.05  # performances too: a long one rendered at once starved the reader

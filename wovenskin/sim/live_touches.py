@@ -14,8 +14,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from wovenskin.sim.contact import ContactTrack
 from wovenskin.sim.person import Pad
-from wovenskin.sim.physics import ContactTrack
 
 _TOUCH_RAMP_S = 0.02  # an outside fingertip reaches its force (or lifts) over this time
 MAX_TOUCH_FORCE_N = 10.0

@@ -43,10 +43,8 @@ from scipy.signal import lfilter
 
 from wovenskin.errors import ConfigError
 from wovenskin.sim.contact import ContactTrack, NoiseBurst, hertz_pressure_kpa
-from wovenskin.sim.skin_physics import TYPICAL_GAIN_PF, SkinPhysics
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
-
-__all__ = ["TYPICAL_GAIN_PF", "SkinModel", "SkinPhysics"]  # TYPICAL_GAIN_PF: bench/detection
 
 DRIFT_SMOOTHING_S = 10.0
 """Thermal time constant of the skin (s): the drift processes pass through a first-order

@@ -1,5 +1,4 @@
-"""The skin-source interface every backend (simulated, serial, replay) implements.
-"""
+"""The skin-source interface every backend (simulated, serial, replay) implements."""
 
 from __future__ import annotations
 

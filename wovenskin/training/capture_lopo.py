@@ -23,8 +23,8 @@ from wovenskin.training.capture_eval import CaptureEvaluation, per_class_dict, s
 from wovenskin.training.capture_prep import read_capture_file
 from wovenskin.training.capture_train import internal_validation, train_captures_split
 from wovenskin.training.config import CAPTURE_DEFAULTS, TrainConfig
+from wovenskin.training.history import TrainEvent
 from wovenskin.training.metrics import ClassificationMetrics, classification_metrics
-from wovenskin.training.train import TrainEvent
 
 LOPO_FILE = "lopo.json"
 

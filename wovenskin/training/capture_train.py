@@ -30,7 +30,8 @@ from wovenskin.training.capture_prep import (
     read_capture_file,
 )
 from wovenskin.training.config import CAPTURE_DEFAULTS, CAPTURE_HPARAMS, TrainConfig
-from wovenskin.training.train import TrainEvent, TrainResult, train_model
+from wovenskin.training.history import TrainEvent
+from wovenskin.training.train import TrainResult, train_model
 
 
 def internal_validation(

@@ -30,36 +30,16 @@ from torch import nn
 
 from wovenskin import __version__
 from wovenskin.recognition.checkpoint_meta import (
-    FORMAT_VERSION,
-    META_FILE,
     ONNX_FILE,
-    SAMPLE_RATE_REL_TOL,
     WEIGHTS_FILE,
     CheckpointError,
     CheckpointMeta,
     atomic_write_bytes,
-    conditioning_differences,
     read_meta,
     write_meta,
 )
 from wovenskin.recognition.onnx_runtime import export_onnx as _export_onnx
 from wovenskin.training.models import MODEL_REGISTRY, build_model, resolve_hparams
-
-__all__ = [
-    "CheckpointError",
-    "CheckpointMeta",
-    "FORMAT_VERSION",
-    "META_FILE",
-    "ONNX_FILE",
-    "SAMPLE_RATE_REL_TOL",
-    "WEIGHTS_FILE",
-    "atomic_write_bytes",
-    "conditioning_differences",
-    "load_checkpoint",
-    "read_meta",
-    "save_checkpoint",
-    "write_meta",
-]
 
 
 def _check_model_matches(model: nn.Module, meta: CheckpointMeta) -> None:

@@ -47,7 +47,8 @@ from torch import nn
 
 from wovenskin.errors import ConfigError, DataError
 from wovenskin.io import atomic_write_bytes, to_jsonable
-from wovenskin.training.checkpoint import CheckpointMeta, save_checkpoint
+from wovenskin.recognition.checkpoint_meta import CheckpointMeta
+from wovenskin.training.checkpoint import save_checkpoint
 from wovenskin.training.config import TrainConfig
 from wovenskin.training.history import EpochRecord, TrainEvent, write_history
 from wovenskin.training.metrics import ClassificationMetrics, classification_metrics

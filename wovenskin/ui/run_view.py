@@ -25,7 +25,8 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
-from wovenskin.control.session import ControlSession, SessionResult
+from wovenskin.control.session import ControlSession
+from wovenskin.control.session_state import SessionResult
 from wovenskin.ui.terminal import heatmap, live_screen
 
 STOP_KEY = " "

@@ -14,11 +14,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from wovenskin.robots.base import N_JOINTS, JointLimits, Kinematics, SceneModel
-from wovenskin.robots.dh import (  # noqa: F401 (DHLink, dh_transform: re-exported)
+from wovenskin.robots.dh import (
     DHLink,
     chain_frames,
     chain_jacobian,
-    dh_transform,
 )
 
 if TYPE_CHECKING:

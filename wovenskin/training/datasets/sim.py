@@ -17,7 +17,7 @@ import numpy as np
 from wovenskin.gestures import CLASS_NAMES
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinPhysics
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.skin.layout import SkinLayout
 from wovenskin.training.datasets.jobs import run_jobs

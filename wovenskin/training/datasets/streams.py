@@ -26,7 +26,7 @@ from wovenskin.recording.formats import LabelledStream
 from wovenskin.signal.conditioner import condition_recording
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.sim.person import Person
-from wovenskin.sim.physics import SkinPhysics
+from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.training.datasets.jobs import one_line, run_jobs
 from wovenskin.training.datasets.store import DatasetError, ProgressCallback, WindowDataset
 from wovenskin.training.datasets.writer import (

@@ -50,8 +50,8 @@ from fastapi import FastAPI, Request, WebSocket, WebSocketDisconnect
 from fastapi.responses import HTMLResponse, JSONResponse, PlainTextResponse
 from fastapi.staticfiles import StaticFiles
 
-from wovenskin.recording.formats import loads_json
-from wovenskin.sim.live import Fingertip
+from wovenskin.recording.untrusted import loads_json
+from wovenskin.sim.live_touches import Fingertip
 from wovenskin.ui.dashboard.runner import DashboardRunner
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
