@@ -175,3 +175,48 @@ def test_upward_imports_are_found():
 def test_every_stage_imports_only_stages_below_it():
     upward = upward_imports(import_graph())
     assert not upward, "upward imports:\n" + "\n".join(upward)
+
+
+MAX_MODULE_LINES = 550  # "about 500": a module past this is doing two jobs
+
+
+def test_no_module_is_too_long():
+    long = {
+        str(path.relative_to(PACKAGE_ROOT)): n
+        for path in PACKAGE_ROOT.rglob("*.py")
+        if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES
+    }
+    assert not long, f"modules over {MAX_MODULE_LINES} lines: {long}"
+
+
+# Where an import of a wovenskin module may sit inside a function: the command line (each
+# command imports its library code when it runs, so `wovenskin --help` stays fast) and a
+# package's module-level __getattr__ (a submodule that is also run with `python -m`).
+LAZY_IMPORTS_ALLOWED = ("wovenskin.cli", "wovenskin.robots.techman")
+
+
+def function_level_imports() -> list[str]:
+    """``module:line`` of each import of a wovenskin module inside a function or class."""
+    found = []
+    for name, path in _modules().items():
+        if name.startswith(LAZY_IMPORTS_ALLOWED):
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for top in tree.body:
+            if not isinstance(top, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+                continue
+            for node in _runtime_imports(top):
+                modules = (
+                    [alias.name for alias in node.names]
+                    if isinstance(node, ast.Import)
+                    else [node.module or ""]
+                )
+                relative = isinstance(node, ast.ImportFrom) and node.level > 0
+                if relative or any(m.split(".")[0] == "wovenskin" for m in modules):
+                    found.append(f"{name}:{node.lineno}")
+    return found
+
+
+def test_wovenskin_modules_are_imported_at_module_top():
+    lazy = function_level_imports()
+    assert not lazy, "imports inside functions: " + ", ".join(lazy)

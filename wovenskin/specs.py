@@ -33,12 +33,14 @@ class SpecError(ConfigError):
 @dataclass(frozen=True)
 class Spec:
     """A parsed spec: ``kind`` in lower case, ``target`` (a port, file or host; may be
-    empty) and the options as text, in the order given."""
+    empty), the options as text in the order given, and whether a colon followed the kind
+    (``colon``: ``tm:HOST`` and ``sim:seed=3`` have one, ``sim`` and ``sim?seed=3`` not)."""
 
     text: str
     kind: str
     target: str = ""
     options: dict[str, str] = field(default_factory=dict)
+    colon: bool = False
 
     def read_options(self, cls: type[T], **extra: Any) -> T:
         """The options (and ``extra``, which they may not repeat) as the dataclass ``cls``."""
@@ -78,7 +80,7 @@ def parse_spec(spec: str, overrides: Mapping[str, Any] | None = None) -> Spec:
         raise SpecError(str(spec), "is empty")
     text = spec.strip()
     head, qmark, query = text.partition("?")
-    kind, _, target = head.partition(":")
+    kind, colon, target = head.partition(":")
     kind = kind.strip().lower()
     if not kind or not kind.replace("_", "").replace("-", "").isalnum():
         raise SpecError(text, "does not start with a kind (e.g. sim, serial:PORT)")
@@ -91,4 +93,4 @@ def parse_spec(spec: str, overrides: Mapping[str, Any] | None = None) -> Spec:
     for key, value in (overrides or {}).items():
         if value is not None:
             options[key.lower()] = str(value)
-    return Spec(text, kind, target.strip(), options)
+    return Spec(text, kind, target.strip(), options, colon=bool(colon))

@@ -256,12 +256,7 @@ class RecognitionBenchResult:
             f = figures(s)
             table.add_row(
                 name,
-                str(s.n_events),
-                str(s.n_detected),
-                f"{s.precision:.3f}",
-                f"{s.recall:.3f}",
-                f"{s.f1:.3f}",
-                f"{s.false_per_min:.2f}",
+                *s.table_cells(),
                 ms(f["median_latency_s"], f["p90_latency_s"]),
                 ms(f["median_motion_latency_s"], f["p90_motion_latency_s"]),
                 style=style,

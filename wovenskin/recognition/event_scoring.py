@@ -114,6 +114,18 @@ class EventScores:
         latencies = self.motion_latencies_s
         return float(np.median(latencies)) if latencies else None
 
+    def table_cells(self) -> list[str]:
+        """Events, hits, precision, recall, F1 and false activations per minute, as the
+        tables that show event scores print them."""
+        return [
+            str(self.n_events),
+            str(self.n_detected),
+            f"{self.precision:.3f}",
+            f"{self.recall:.3f}",
+            f"{self.f1:.3f}",
+            f"{self.false_per_min:.2f}",
+        ]
+
     def to_dict(self) -> dict:
         return {
             "streams": self.n_streams,
@@ -330,12 +342,7 @@ def scores_table(rows: Sequence[tuple[str, EventScores]], total: EventScores | N
     for name, s in shown:
         table.add_row(
             name,
-            str(s.n_events),
-            str(s.n_detected),
-            f"{s.precision:.3f}",
-            f"{s.recall:.3f}",
-            f"{s.f1:.3f}",
-            f"{s.false_per_min:.2f}",
+            *s.table_cells(),
             str(s.n_duplicates),
             _ms(s.median_latency_s),
             _ms(s.median_motion_latency_s),

@@ -79,8 +79,7 @@ def parse_robot_spec(spec: str) -> RobotSpec:
     except specs.SpecError as exc:
         raise SpecError(spec, exc.why) from None
     backend = BACKENDS.get(parsed.kind)
-    has_address = ":" in parsed.text.partition("?")[0]
-    if backend is None or has_address != backend.address:
+    if backend is None or parsed.colon != backend.address:
         raise SpecError(spec, "is not understood")
     host = port = None
     if backend.address:
