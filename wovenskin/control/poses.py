@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from wovenskin.errors import ConfigError
+from wovenskin.io import atomic_write_text
 from wovenskin.robots.base import N_JOINTS, Pose, Robot, RobotError
 
 POSE_NAMES = ("initial", "home")
@@ -102,9 +103,7 @@ class PoseStore:
                 f"quat = {_toml_floats(pose.tcp.quat)}",
             ]
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = self.path.with_name(self.path.name + ".tmp")
-        tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
-        tmp.replace(self.path)
+        atomic_write_text(self.path, "\n".join(lines) + "\n")
         return self.path
 
 

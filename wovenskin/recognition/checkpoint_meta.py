@@ -1,7 +1,7 @@
 """Checkpoint metadata: the input contract of a model, read and written without torch.
 
 Owns the file names of a checkpoint directory, :class:`CheckpointMeta` (``meta.json``),
-:func:`read_meta`, :func:`write_meta`, :func:`atomic_write_bytes` and
+:func:`read_meta`, :func:`write_meta` and
 :class:`CheckpointError`.  :meth:`CheckpointMeta.check_input` is the guard every consumer
 calls before feeding a model: it refuses frames from another grid, window length, sample
 rate or conditioning with a one-line ``ValueError`` naming what differs.
@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
+
+from wovenskin.io import atomic_write_bytes
 
 META_FILE = "meta.json"
 WEIGHTS_FILE = "model.pt"
@@ -185,18 +185,6 @@ class CheckpointMeta:
             return cls(**values)
         except (TypeError, ValueError) as exc:
             raise CheckpointError(f"bad checkpoint meta: {exc}") from None
-
-
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename (no torn files)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def write_meta(directory: str | Path, meta: CheckpointMeta) -> Path:

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, TextIO
 
+from wovenskin.io import atomic_write_text
+
 TIME_DECIMALS = 6
 
 
@@ -79,10 +81,7 @@ def write_command_log(target: str | os.PathLike | TextIO, commands: Iterable[Com
     if hasattr(target, "write"):
         target.write(text)  # type: ignore[union-attr]
         return
-    path = Path(target)  # type: ignore[arg-type]
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+    atomic_write_text(target, text)  # type: ignore[arg-type]
 
 
 def _entry(line: str) -> Command | None:

@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from wovenskin.io import atomic_write_bytes
 from wovenskin.recognition.checkpoint_meta import (
     ONNX_FILE,
     CheckpointError,
     CheckpointMeta,
-    atomic_write_bytes,
     read_meta,
 )
 

@@ -29,12 +29,12 @@ import torch
 from torch import nn
 
 from wovenskin import __version__
+from wovenskin.io import atomic_write_bytes
 from wovenskin.recognition.checkpoint_meta import (
     ONNX_FILE,
     WEIGHTS_FILE,
     CheckpointError,
     CheckpointMeta,
-    atomic_write_bytes,
     read_meta,
     write_meta,
 )
