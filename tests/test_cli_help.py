@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 from typer.testing import CliRunner
 
 from wovenskin.cli import app
@@ -22,3 +25,17 @@ def test_version_prints_the_version() -> None:
 
     result = CliRunner().invoke(app, ["--version"])
     assert result.exit_code == 0 and result.output.strip() == f"wovenskin {__version__}"
+
+
+def test_the_command_line_loads_no_pipeline_stage_until_a_command_runs() -> None:
+    """Every command starts a fresh Python: importing the command line must not import the
+    simulator, training, torch, MuJoCo or ONNX Runtime (seconds of start-up for each
+    subprocess a test or a script runs; `wovenskin --help` took 2.6 s when it did)."""
+    code = (
+        "import sys, wovenskin.cli\n"
+        "heavy = ('torch', 'mujoco', 'onnxruntime', 'scipy', 'wovenskin.sim',"
+        " 'wovenskin.training', 'wovenskin.runtime', 'wovenskin.recognition')\n"
+        "print(sorted(m for m in sys.modules if m.startswith(heavy)))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout

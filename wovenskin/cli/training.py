@@ -1,8 +1,9 @@
 """Commands that build data sets, train, evaluate and compare models (training needs PyTorch).
 
-Modules that import torch (training.compare, capture_train, capture_lopo) are imported
-inside the commands that need them, after ``require_torch``, so ``wovenskin --help`` and
-the ONNX-only ``eval`` work without torch.
+Each command imports its library code when it runs: ``wovenskin --help`` stays instant
+(the training modules pull in the simulator and scipy), and the modules that import torch
+(training.compare, capture_train, capture_lopo) come after ``require_torch``, so the
+ONNX-only ``eval`` works without torch.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 from rich.console import Console
@@ -26,18 +28,9 @@ from wovenskin.cli.app import (
     warn,
 )
 from wovenskin.errors import ConfigError
-from wovenskin.recognition.shipped import DEFAULT_MODEL_DIR, resolve_model_dir
-from wovenskin.training import capture_eval, runs
-from wovenskin.training.config import CAPTURE_DEFAULTS, TrainConfig
-from wovenskin.training.datasets import build_dataset_from_streams, generate_sim_dataset
-from wovenskin.training.progress import TrainProgressDisplay, dataset_progress
-from wovenskin.training.report import (
-    DatasetSummary,
-    evaluate_on_dataset,
-    per_class_table,
-    write_report,
-)
-from wovenskin.training.window_settings import WindowSettings
+
+if TYPE_CHECKING:
+    from wovenskin.training.config import TrainConfig
 
 SPLIT_HELP = "grouped (recordings, people and skins never seen in training) or random (85/15)."
 
@@ -57,6 +50,10 @@ def _json_object(text: str, option: str) -> dict:
 
 def _open_or_build_dataset(data: Path | None, ui: Console):
     """The data set at ``data``, or the default one (generated with a progress bar if missing)."""
+    from wovenskin.training import runs
+    from wovenskin.training.progress import dataset_progress
+    from wovenskin.training.report import DatasetSummary
+
     if data is not None or runs.default_dataset_exists():
         return runs.ensure_dataset(data)[0]
     ui.print(f"no data set given: building the default one in {runs.DEFAULT_DATASET_DIR} (once)")
@@ -104,6 +101,11 @@ def dataset(
     overwrite: bool = typer.Option(False, help="Replace an existing data set."),
 ) -> None:
     """Build a window data set from simulation or labelled streams."""
+    from wovenskin.training.datasets import build_dataset_from_streams, generate_sim_dataset
+    from wovenskin.training.progress import dataset_progress
+    from wovenskin.training.report import DatasetSummary
+    from wovenskin.training.window_settings import WindowSettings
+
     settings = WindowSettings(recipe=recipe)
 
     files = [*(streams or []), *(more_streams or [])]
@@ -150,6 +152,10 @@ def train(
     overwrite: bool = typer.Option(False, help="Replace a trained model already in --out."),
 ) -> None:
     """Train a gesture classifier (PyTorch) with early stopping, checkpoints and resume."""
+    from wovenskin.training import runs
+    from wovenskin.training.config import CAPTURE_DEFAULTS, TrainConfig
+    from wovenskin.training.progress import TrainProgressDisplay
+
     require_torch("wovenskin train")
     from wovenskin.training.compare import train_on_dataset  # needs torch
 
@@ -202,6 +208,7 @@ def train(
 
 def _train_on_captures(path: Path, out: Path, config: TrainConfig) -> None:
     from wovenskin.training.capture_train import train_on_captures  # needs torch
+    from wovenskin.training.progress import TrainProgressDisplay
 
     console.print(
         f"training on labelled captures {path} into {out}", highlight=False, soft_wrap=True
@@ -263,6 +270,10 @@ def eval_command(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
 ) -> None:
     """Score a model with ONNX Runtime: accuracy, macro-F1, per-class table, confusion matrix."""
+    from wovenskin.recognition.shipped import DEFAULT_MODEL_DIR, resolve_model_dir
+    from wovenskin.training import runs
+    from wovenskin.training.report import evaluate_on_dataset, per_class_table, write_report
+
     if captures is not None:
         _eval_captures(captures, model, out, lopo, arch, epochs, threads, json_out)
         return
@@ -300,6 +311,11 @@ def _eval_captures(
     path: Path, model: Path | None, out: Path | None, lopo: bool, arch: str | None,
     epochs: int | None, threads: int, json_out: bool,
 ) -> None:  # fmt: skip
+    from wovenskin.recognition.shipped import resolve_model_dir
+    from wovenskin.training import capture_eval, runs
+    from wovenskin.training.config import CAPTURE_DEFAULTS
+    from wovenskin.training.progress import TrainProgressDisplay
+
     if lopo:
         require_torch("wovenskin eval --lopo")
         from wovenskin.training.capture_lopo import leave_one_participant_out  # needs torch
@@ -362,6 +378,10 @@ def compare(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
 ) -> None:
     """Train and score several models on the same data and split: the side-by-side table."""
+    from wovenskin.training import runs
+    from wovenskin.training.config import TrainConfig
+    from wovenskin.training.progress import TrainProgressDisplay
+
     require_torch("wovenskin compare")
     from wovenskin.training.compare import compare_models  # needs torch
 
