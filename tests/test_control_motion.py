@@ -121,6 +121,7 @@ held_twists = st.lists(twist_values, min_size=6, max_size=6).filter(held)
 targets = st.lists(st.tuples(held_twists, st.integers(1, 60)), min_size=1, max_size=6)
 
 
+@pytest.mark.slow  # 80 hypothesis plans, ~10 s: `make test-fast` leaves it out
 @settings(max_examples=80, deadline=None)
 @given(targets, st.sampled_from([0.002, 0.005, 0.01, 0.02]))
 def test_limits_are_never_exceeded_and_the_target_is_reached(plan, dt: float) -> None:

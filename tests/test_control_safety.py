@@ -665,6 +665,7 @@ def test_fuzzed_commands_never_break_the_limits_of_the_stand_in(program, robot_t
     run_fuzz(robot, BOX, program, joints, speed_tol=0.0, box_tol=1e-9, substep=0.05)
 
 
+@pytest.mark.slow  # 60 programs on the MuJoCo arm, ~7 s: `make test-fast` leaves it out
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(commands, min_size=1, max_size=15))
 def test_fuzzed_commands_never_break_the_limits_of_the_simulated_arm(program) -> None:
