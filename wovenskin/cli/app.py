@@ -158,6 +158,11 @@ def warn(message: str) -> None:
 
 MODEL_HELP = "Checkpoint directory with model.onnx (default: the shipped model)."
 
+# Options several commands share, defined once (typer reads a default OptionInfo per use).
+MODEL = typer.Option(None, help=MODEL_HELP)
+THREADS = typer.Option(1, help="ONNX Runtime threads for the model.")
+JSON_OUT = typer.Option(False, "--json", help="Print one JSON object.")
+
 
 ROBOT_HELP = (
     "Robot: sim (the simulated TM5-900), tm:HOST[:PORT][?listen_port=N&state_port=N] "

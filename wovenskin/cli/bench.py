@@ -11,7 +11,9 @@ from pathlib import Path
 import typer
 
 from wovenskin.cli.app import (
-    MODEL_HELP,
+    JSON_OUT,
+    MODEL,
+    THREADS,
     bench_app,
     console,
     err_console,
@@ -28,7 +30,7 @@ from wovenskin.errors import ConfigError
 @user_errors
 def bench_io(
     frames: int = typer.Option(20000, help="Frames to push through each stage."),
-    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    json_out: bool = JSON_OUT,
 ) -> None:
     """Decode and conditioning throughput for a 10 x 10 skin on one core."""
 
@@ -43,7 +45,7 @@ def bench_io(
 def bench_serial(
     stalls: int = typer.Option(10, help="Device stalls to time."),
     stall_ms: float = typer.Option(30.0, help="The reader's stall threshold."),
-    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    json_out: bool = JSON_OUT,
 ) -> None:
     """Serial reader over a real pseudo-terminal: frames, errors, stall-report delay."""
 
@@ -57,7 +59,7 @@ def bench_serial(
 @user_errors
 def bench_sim(
     seconds: float = typer.Option(60.0, help="Length of the simulated stream to time."),
-    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    json_out: bool = JSON_OUT,
 ) -> None:
     """How many times faster than real time the simulated skin renders, on one core."""
 
@@ -90,7 +92,7 @@ def bench_detection(
 @bench_app.command("recognition")
 @user_errors
 def bench_recognition(
-    model: Path = typer.Option(None, help=MODEL_HELP),
+    model: Path = MODEL,
     streams_per_condition: int = typer.Option(3, help="Unseen simulated streams per condition."),
     seconds: float = typer.Option(60.0, help="Length of each simulated stream."),
     seed: int = typer.Option(
@@ -102,8 +104,8 @@ def bench_recognition(
     min_probability: float = typer.Option(
         None, help="Least class probability that counts (default: the model's recommendation)."
     ),
-    threads: int = typer.Option(1, help="ONNX Runtime threads for the model."),
-    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    threads: int = THREADS,
+    json_out: bool = JSON_OUT,
 ) -> None:
     """The live pipeline on unseen simulated streams by condition: F1, false alarms, latency."""
     from rich.progress import (
@@ -153,7 +155,7 @@ def bench_model(
     batch_size: int = typer.Option(256, help="Batch of the throughput figures."),
     shipped: bool = typer.Option(True, help="Also time the shipped default model."),
     seconds: float = typer.Option(1.0, help="Seconds of calls behind each throughput figure."),
-    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    json_out: bool = JSON_OUT,
 ) -> None:
     """Per-window latency (batch 1, one thread) and throughput on ONNX Runtime and torch."""
 
@@ -174,7 +176,7 @@ def bench_model(
 @bench_app.command("control")
 @user_errors
 def bench_control(
-    model: Path = typer.Option(None, help=MODEL_HELP),
+    model: Path = MODEL,
     loop_seconds: float = typer.Option(5.0, help="Seconds of the real-time control loop."),
     streams: int = typer.Option(2, help="Simulated streams behind the latency figures."),
     stream_seconds: float = typer.Option(40.0, help="Length of each simulated stream."),
@@ -187,7 +189,7 @@ def bench_control(
         help="The arm behind the stop times: 'sim' (simulated clock) or 'techman-fake' (the "
         "Techman client against the fake Techman controller, real time, ~3 min).",
     ),
-    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    json_out: bool = JSON_OUT,
 ) -> None:
     """IK step time, control-loop rate and jitter, first contact to first motion, stop
     times. ``--loop-seconds 0 --streams 0`` measures only the IK and the stops."""
@@ -207,7 +209,7 @@ def bench_control(
 def bench_safety(
     episodes: int = typer.Option(40, help="Episodes of random twists (6 commands each)."),
     seed: int = typer.Option(0, help="Seed of the random postures and twists."),
-    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    json_out: bool = JSON_OUT,
 ) -> None:
     """The safety layer's adversarial probe on the simulated arm: joint-margin clearance
     at 30-148 deg/s, measured speeds over the caps, the box and the margins under random
@@ -222,7 +224,7 @@ def bench_safety(
 @bench_app.command("dashboard")
 @user_errors
 def bench_dashboard(
-    model: Path = typer.Option(None, help=MODEL_HELP),
+    model: Path = MODEL,
     idle_seconds: float = typer.Option(5.0, help="Seconds of page states counted while idle."),
     swipes: int = typer.Option(6, help="Swipes sent over the socket (alternately up and down)."),
     ui_rate: float = typer.Option(40.0, help="Page updates per second asked of the server."),
@@ -235,7 +237,7 @@ def bench_dashboard(
         help="Rounds of the gestures a mouse draws (swipes 40-90 mm at 70-250 mm/s, circles, "
         "push), each densely and sparsely sampled (0: none).",
     ),
-    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    json_out: bool = JSON_OUT,
 ) -> None:
     """Dashboard page rate, touch -> command -> motion latency, the 14 gestures drawn as
     on a touch screen and the gestures drawn with a mouse (dense and sparse pointer

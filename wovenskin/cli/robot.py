@@ -9,7 +9,7 @@ import typer
 from rich.markup import escape
 
 from wovenskin.cli.app import (
-    MODEL_HELP,
+    MODEL,
     ROBOT_HELP,
     SKIN_HELP,
     app,
@@ -30,7 +30,7 @@ def run(
         None, help=SKIN_HELP + " Default: sim:auto=0 with the dashboard, else sim."
     ),
     robot: str = typer.Option("sim", help=ROBOT_HELP),
-    model: Path = typer.Option(None, help=MODEL_HELP),
+    model: Path = MODEL,
     view: str = typer.Option("dashboard", help="dashboard (web page), terminal or none."),
     headless: bool = typer.Option(
         False, help="No view (same as --view none); replays run as fast as possible."

@@ -7,7 +7,9 @@ from pathlib import Path
 import typer
 
 from wovenskin.cli.app import (
-    MODEL_HELP,
+    JSON_OUT,
+    MODEL,
+    THREADS,
     app,
     console,
     err_console,
@@ -18,13 +20,11 @@ from wovenskin.cli.app import (
 from wovenskin.errors import DataError
 
 # The options both commands share (one definition each).
-MODEL = typer.Option(None, help=MODEL_HELP)
 EVERY = typer.Option(1, help="Run the model on every K-th frame's window.")
 DWELL_MS = typer.Option(100.0, help="Dwell time before a gesture acts.")
 MIN_PROBABILITY = typer.Option(
     None, help="Least class probability that counts (default: the model's recommendation)."
 )
-THREADS = typer.Option(1, help="ONNX Runtime threads for the model.")
 
 
 @app.command()
@@ -71,7 +71,7 @@ def eval_stream(
     dwell_ms: float = DWELL_MS,
     min_probability: float = MIN_PROBABILITY,
     threads: int = THREADS,
-    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    json_out: bool = JSON_OUT,
 ) -> None:
     """Score the pipeline's commands against labelled events: event F1, false activations."""
     import json
