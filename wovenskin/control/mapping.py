@@ -7,6 +7,14 @@ A TOML file (the packaged ``default_mapping.toml`` is docs/gestures.md's table) 
 :meth:`ActionMapping.load` validates it and reports the first problem as one line naming
 the file and the key; :meth:`ActionMapping.target_twist` turns a gesture into the
 base-frame twist the robot should move with at full speed.
+
+The axes of the ``[gestures]`` table are those of ``motion.frame``: ``tool`` (the paper's
+mapping: the end effector's frame), ``base``, or ``skin``: the skin patch as it is
+mounted on the end link (docs/interfaces.md), with x its outward normal, y its "right"
+(toward higher columns) and z its "up" (toward row 0), so the default table moves the
+tool the way the finger moved on the skin (``swipe_right`` = ``translate +y``).  The
+patch's up and right axes in the tool frame are ``motion.skin_up`` / ``motion.skin_right``
+(default: the simulated TM5-900's ``skin_patch`` site, :data:`SKIN_UP_IN_TOOL`).
 """
 
 from __future__ import annotations
@@ -27,23 +35,38 @@ from wovenskin.robots.base import Pose
 DEFAULT_MAPPING_FILE = "default_mapping.toml"
 POSE_NAMES = ("initial", "home")
 AXES = {"x": 0, "y": 1, "z": 2}
+FRAMES = ("tool", "base", "skin")
+# The skin patch on the simulated TM5-900's end link (robots/sim/tm5_900.xml: the
+# "skin_patch" site has the tool's orientation; the skin's up is the site's x, its right
+# the site's z), in the tool frame.  tests/test_control_mapping_skin.py checks them
+# against the MuJoCo model.
+SKIN_UP_IN_TOOL = (1.0, 0.0, 0.0)
+SKIN_RIGHT_IN_TOOL = (0.0, 0.0, 1.0)
 
 
 @dataclass(frozen=True)
 class MotionSettings:
     """Speeds and smoothing of velocity commands (SI units: m, rad, s)."""
 
-    frame: Literal["tool", "base"] = "tool"
+    frame: Literal["tool", "base", "skin"] = "tool"
     linear_speed: float = 0.05  # m/s
     angular_speed: float = math.radians(15.0)  # rad/s
     linear_accel: float = 0.25  # m/s^2
     angular_accel: float = math.radians(90.0)  # rad/s^2
     linear_jerk: float = 2.5  # m/s^3
     angular_jerk: float = math.radians(900.0)  # rad/s^3
+    skin_up: tuple[float, float, float] = SKIN_UP_IN_TOOL  # the patch's up, tool frame
+    skin_right: tuple[float, float, float] = SKIN_RIGHT_IN_TOOL  # its right, tool frame
 
     def __post_init__(self) -> None:
-        if self.frame not in ("tool", "base"):
-            raise ConfigError(f"frame must be 'tool' or 'base', got {self.frame!r}")
+        if self.frame not in FRAMES:
+            raise ConfigError(f"frame must be 'tool', 'base' or 'skin', got {self.frame!r}")
+        up = _unit(self.skin_up, "skin_up")
+        right = _unit(self.skin_right, "skin_right")
+        if abs(float(up @ right)) > 1e-3:
+            raise ConfigError("skin_up and skin_right must be perpendicular")
+        object.__setattr__(self, "skin_up", tuple(float(v) for v in up))
+        object.__setattr__(self, "skin_right", tuple(float(v) for v in right))
         for name in (
             "linear_speed",
             "angular_speed",
@@ -57,6 +80,15 @@ class MotionSettings:
                 raise ConfigError(f"{name} must be a number, got {value!r}")
             if not (math.isfinite(value) and value > 0.0):
                 raise ConfigError(f"{name} must be a positive finite number, got {value!r}")
+
+    def skin_rotation(self) -> np.ndarray:
+        """3x3 rotation tool <- skin; the skin frame's axes are its outward normal (x),
+        right (y) and up (z), as columns in the tool frame."""
+        up = np.asarray(self.skin_up, dtype=float)
+        right = np.asarray(self.skin_right, dtype=float)
+        right = right - (right @ up) * up
+        right /= np.linalg.norm(right)
+        return np.column_stack([np.cross(right, up), right, up])
 
 
 @dataclass(frozen=True)
@@ -141,18 +173,40 @@ class ActionMapping:
             return None
         return self.actions.get(gesture)
 
+    def resolve(self, name: str) -> Action | None:
+        """The action of a gesture name, or an action written as in the mapping file
+        (``"translate +x"``, ``"rotate -z"``, ``"pose home"``); ``ConfigError`` otherwise."""
+        if name in CLASS_NAMES:
+            return self.action_for(name)
+        return _parse_action(name, self.hold_to_run, "action", "input")
+
+    @property
+    def hold_to_run(self) -> bool:
+        """Whether pose actions stop when their command ends (``poses.hold_to_run``)."""
+        poses = [a for a in self.actions.values() if isinstance(a, PoseAction)]
+        return poses[0].hold_to_run if poses else True
+
     def target_twist(self, gesture: str | None, tcp: Pose) -> np.ndarray:
         """Base-frame twist ``[vx, vy, vz, wx, wy, wz]`` of ``gesture`` at full speed.
 
-        Tool-frame axes are turned into the base frame with the TCP's orientation. Pose
-        actions and no action give a zero twist.
+        Tool- and skin-frame axes are turned into the base frame with the TCP's
+        orientation. Pose actions and no action give a zero twist.
         """
+        return self.twist_of(self.action_for(gesture), tcp)
+
+    def twist_of(self, action: Action | None, tcp: Pose, frame: str | None = None) -> np.ndarray:
+        """Base-frame twist of ``action`` at full speed, its axis read in ``frame``
+        (``tool``, ``base`` or ``skin``; default: the mapping's ``motion.frame``)."""
         twist = np.zeros(6)
-        action = self.action_for(gesture)
         if not isinstance(action, TwistAction):
             return twist
+        frame = self.settings.frame if frame is None else frame
+        if frame not in FRAMES:
+            raise ConfigError(f"unknown frame {frame!r}: use tool, base or skin")
         axis = action.axis
-        if self.settings.frame == "tool":
+        if frame == "skin":
+            axis = tcp.rotation() @ (self.settings.skin_rotation() @ axis)
+        elif frame == "tool":
             axis = tcp.rotation() @ axis
         if action.kind == "translate":
             twist[:3] = axis * self.settings.linear_speed
@@ -181,13 +235,32 @@ def _check_keys(table: dict[str, Any], allowed: set[str], prefix: str, source: s
             raise ConfigError(f"{source}: {prefix}{key}: unknown key (expected one of {expected})")
 
 
+def _unit(values: Any, name: str) -> np.ndarray:
+    """``values`` as a unit 3-vector; else a one-line ``ConfigError`` naming ``name``."""
+    try:
+        vector = np.array(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be three numbers, got {values!r}") from None
+    norm = float(np.linalg.norm(vector)) if vector.shape == (3,) else 0.0
+    if vector.shape != (3,) or not (math.isfinite(norm) and norm > 1e-9):
+        raise ConfigError(f"{name} must be three finite numbers, not all zero, got {values!r}")
+    return vector / norm
+
+
 def _motion_settings(motion: dict[str, Any], source: str) -> MotionSettings:
-    _check_keys(motion, {"frame", *_LINEAR_KEYS, *_ANGULAR_KEYS}, "motion.", source)
+    allowed = {"frame", "skin_up", "skin_right", *_LINEAR_KEYS, *_ANGULAR_KEYS}
+    _check_keys(motion, allowed, "motion.", source)
     values: dict[str, Any] = {}
     frame = motion.get("frame", "tool")
-    if frame not in ("tool", "base"):
-        raise ConfigError(f"{source}: motion.frame must be 'tool' or 'base', got {frame!r}")
+    if frame not in FRAMES:
+        raise ConfigError(f"{source}: motion.frame must be 'tool', 'base' or 'skin', got {frame!r}")
     values["frame"] = frame
+    for key in ("skin_up", "skin_right"):
+        if key in motion:
+            try:
+                values[key] = tuple(_unit(motion[key], f"motion.{key}"))
+            except ConfigError as exc:
+                raise ConfigError(f"{source}: {exc}") from None
     for key in (*_LINEAR_KEYS, *_ANGULAR_KEYS):
         if key not in motion:
             continue
@@ -196,7 +269,10 @@ def _motion_settings(motion: dict[str, Any], source: str) -> MotionSettings:
         if not (number and math.isfinite(value) and value > 0.0):
             raise ConfigError(f"{source}: motion.{key} must be a positive number, got {value!r}")
         values[key] = math.radians(value) if key in _ANGULAR_KEYS else float(value)
-    return MotionSettings(**values)
+    try:
+        return MotionSettings(**values)
+    except ConfigError as exc:
+        raise ConfigError(f"{source}: motion: {exc}") from None
 
 
 def _parse_action(spec: Any, hold_to_run: bool, key: str, source: str) -> Action | None:

@@ -13,7 +13,9 @@ arrive it is stepped to the session clock too (a stalled live skin), so it stops
 watchdog and reports its true state; the trace gets a line per idle step during a stall.
 One robot step covers at most ``SessionSettings.max_robot_step_s`` (a jump in the skin's
 timestamps is cut, with a message).  Pose actions start a joint move to the stored pose
-(:class:`PoseStore`) and, when hold-to-run, stop as soon as the command ends.
+(:class:`PoseStore`) and, when hold-to-run, stop as soon as the command ends.  Inputs beside
+the skin (keyboard, teach pendant: :mod:`wovenskin.control.session_inputs`) are polled
+every tick and take the same path; the session counts and logs every command.
 
 Safety: every skin frame is a skin heartbeat and every tick a command heartbeat; the
 layer's watchdogs run on the session clock, which is the skin clock while frames arrive
@@ -29,7 +31,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -39,6 +41,7 @@ from wovenskin.control.motion import TwistShaper
 from wovenskin.control.poses import PoseStore
 from wovenskin.control.safety import SafetyLayer
 from wovenskin.control.safety_limits import SafetyLimits
+from wovenskin.control.session_inputs import CommandInput, JointJog, SessionInputs
 from wovenskin.control.session_poses import PoseMove, PoseMoves
 from wovenskin.control.session_record import SessionRecording
 from wovenskin.control.session_state import (
@@ -46,6 +49,7 @@ from wovenskin.control.session_state import (
     SessionSettings,
     SessionState,
 )
+from wovenskin.control.session_views import SessionViews
 from wovenskin.control.trace import TraceWriter
 from wovenskin.errors import ConfigError
 from wovenskin.robots.base import Robot, RobotError
@@ -53,11 +57,14 @@ from wovenskin.robots.base import Robot, RobotError
 log = logging.getLogger(__name__)
 
 
-class ControlSession(PoseMoves, SessionRecording):
+class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
     """The control loop of one session (see the module docstring).
 
-    Pose moves (:class:`~wovenskin.control.session_poses.PoseMoves`) and the recording
-    (:class:`~wovenskin.control.session_record.SessionRecording`) are in their own modules.
+    Pose moves (:class:`~wovenskin.control.session_poses.PoseMoves`), the recording
+    (:class:`~wovenskin.control.session_record.SessionRecording`), the inputs beside the
+    skin and the command count (:class:`~wovenskin.control.session_inputs.SessionInputs`)
+    and what views ask (:class:`~wovenskin.control.session_views.SessionViews`) are in
+    their own modules; ``inputs`` are polled every tick (:meth:`add_input` adds more).
     ``live_skin`` and ``pipeline`` come from
     :func:`~wovenskin.runtime.session.open_session` or are built by the
     caller (``LivePipeline.for_live_skin``); ``robot`` is the raw backend, which the
@@ -82,6 +89,7 @@ class ControlSession(PoseMoves, SessionRecording):
         on_message: Callable[[str], None] | None = None,
         on_tick: Callable[[ControlSession], None] | None = None,
         wall_clock: Callable[[], float] = time.monotonic,
+        inputs: Iterable[CommandInput] = (),
     ) -> None:
         self.live_skin = live_skin
         self.pipeline = pipeline
@@ -120,6 +128,7 @@ class ControlSession(PoseMoves, SessionRecording):
         self.recording_context: dict[str, Any] = {}  # what start_recording writes as settings
         self.last_block_compute_s = 0.0  # recogniser + control + robot for the last block
         self._steps_through_safety = type(self.safety).step is not Robot.step
+        self._init_inputs(inputs)
 
     # -- the session clock
 
@@ -185,10 +194,11 @@ class ControlSession(PoseMoves, SessionRecording):
         self._message("stop cleared: the robot moves again on the next command")
 
     def set_speed_scale(self, scale: float) -> None:
-        """Scale gesture twists and pose moves by ``scale`` (0.05-1); the caps still hold."""
+        """Scale twists, steps and pose moves by ``scale`` (0.01-1, a pendant's 1-100 %
+        override); the caps still hold."""
         scale = float(scale)
-        if not np.isfinite(scale) or not 0.05 <= scale <= 1.0:
-            raise ConfigError(f"speed scale must be between 0.05 and 1, got {scale}")
+        if not np.isfinite(scale) or not 0.01 <= scale <= 1.0:
+            raise ConfigError(f"speed scale must be between 0.01 and 1, got {scale}")
         self.speed_scale = scale
         self._message(f"speed scaled to {scale:.0%}")
 
@@ -331,6 +341,8 @@ class ControlSession(PoseMoves, SessionRecording):
 
     def _apply_change(self, change: Any) -> None:
         self._commands += 1
+        if change.gesture is not None:  # an activation is a command; its end is none
+            self.count_command(float(change.t), "skin", change.gesture, "gesture")
         self.state.gesture = change.gesture
         self.state.gesture_since = float(change.t)
         name = change.gesture or "none"
@@ -348,6 +360,7 @@ class ControlSession(PoseMoves, SessionRecording):
         self._check_watchdogs(t)  # before the heartbeat: a gap in the stream is a stall
         self.safety.heartbeat_skin(t)
         self._clear_recovered_stops()
+        self._poll_inputs(t)
         self._control(t, dt)
         self._advance_robot(t)
         self._read_robot()
@@ -370,8 +383,7 @@ class ControlSession(PoseMoves, SessionRecording):
             self._record_robot(t)
 
     def _control(self, t: float, dt: float) -> None:
-        gesture = self.state.gesture
-        action = self.mapping.action_for(gesture) if gesture is not None else None
+        label, action, frame, since = self._active_command()
         if self.safety.stopped:
             self._pose_move = None
             self.shaper.reset()
@@ -384,22 +396,24 @@ class ControlSession(PoseMoves, SessionRecording):
             self.safety.heartbeat_command(t)
             return
         if isinstance(action, PoseAction):
-            if self._pose_tried != self.state.gesture_since:  # once per command
-                self._pose_tried = self.state.gesture_since
+            if self._pose_tried != since:  # once per command
+                self._pose_tried = since
                 if self._start_pose_move(action, t):
                     self.safety.heartbeat_command(t)
                     return
             action = None  # reached, or the move could not start: hold still
-        self._send_twist(gesture if isinstance(action, TwistAction) else None, t, dt)
+        moves = isinstance(action, TwistAction | JointJog)
+        self._send_twist(label if moves else None, action, frame, t, dt)
 
-    def _send_twist(self, gesture: str | None, t: float, dt: float) -> None:
+    def _send_twist(
+        self, label: str | None, action: Any, frame: str | None, t: float, dt: float
+    ) -> None:
         robot = self.state.robot
         target = np.zeros(6)
-        if gesture is not None and robot is not None:
-            target = np.asarray(self.mapping.target_twist(gesture, robot.tcp), dtype=float)
-            target *= self.speed_scale
+        if label is not None and robot is not None:
+            target = self._target_twist(action, frame, robot) * self.speed_scale
         twist = self.shaper.update(target, min(dt, self.settings.max_shaper_dt_s))
-        self.state.action = f"twist {gesture}" if gesture is not None else "-"
+        self.state.action = f"twist {label}" if label is not None else "-"
         try:
             self.safety.send_twist(twist)
         except (RobotError, ValueError) as exc:
@@ -446,38 +460,14 @@ class ControlSession(PoseMoves, SessionRecording):
 
     def _clear_recovered_stops(self) -> None:
         """A watchdog stop ends once frames flow again and no command is active."""
-        if self._user_stop or not self.safety.stopped or self.state.gesture is not None:
+        active = self.state.gesture is not None or self._held is not None
+        if self._user_stop or not self.safety.stopped or active:
             return
         last = self.safety.stops[-1] if self.safety.stops else None
         self.safety.clear_stop()
         self.shaper.reset()
         why = f" ({last.reason})" if last is not None else ""
         self._message(f"{self._now:8.2f} s  recovered from the stop{why}")
-
-    # -- what views show: why nothing moves
-
-    def holding(self) -> tuple[str, ...]:
-        """Which limits hold the arm back now, one line each, for the views: the safety
-        layer's report (a latched stop with how it ends, the speed cap, a workspace box
-        face, a joint margin) and a simulated arm's own slow-down near a singularity or a
-        joint's speed limit while a gesture's twist runs.  Empty when nothing holds it."""
-        held = list(getattr(self.safety, "limiting", ()))
-        if self.safety.stopped:
-            if self._user_stop:
-                return ("STOP pressed: Resume (or space) to move again",)
-            if self.state.gesture is not None:
-                held.append("lift your fingers: it resumes once the skin streams again")
-            else:
-                held.append("resumes by itself once the skin streams again")
-            return tuple(held)
-        if not self.state.action.startswith("twist"):
-            return ()
-        info = getattr(self.robot, "ik_info", None)
-        scale = float(getattr(info, "scale", 1.0))
-        why = getattr(info, "limited_by", None)
-        if why and scale < 0.999 and np.any(self.state.twist):
-            held.append(f"{why}: the arm moves at {scale:.0%} of the command")
-        return tuple(held)
 
     # -- reporting
 

@@ -45,6 +45,7 @@ class SessionState:
     ticks: int = 0
     gesture: str | None = None
     gesture_since: float | None = None
+    held: str | None = None  # the key or panel button held now ("translate +x (keyboard)")
     action: str = "-"
     top: tuple[str, float] = ("-", 0.0)
     probabilities: np.ndarray | None = None
