@@ -60,6 +60,7 @@ def _trial(
     time_s: float,
     n_commands: int,
     limit: float,
+    clock: list[float],
 ) -> None:
     kind = _KIND.get(rec.interface, "gesture")
     rec.start(0.0)
@@ -113,6 +114,7 @@ def _trial(
         seated = 3 if outcome == "success" else int(rng.integers(0, 3))
         measures = {"objects_seated": seated, "objects_total": 3}
         rec.task_event(end, {"event": "seated", "objects": seated})
+    clock[0] += end  # the synthetic wall clock moves on by the trial's length
     rec.finish(end, outcome, measures)
 
 
@@ -175,8 +177,8 @@ def simulate_study(
                 overwrite=overwrite,
                 wall_clock=lambda: clock[0],
             )
-            _trial(rec, rng, step.task, time_s, n_commands, study.time_limit_s)
-            clock[0] += time_s + 60.0
+            _trial(rec, rng, step.task, time_s, n_commands, study.time_limit_s, clock)
+            clock[0] += 60.0  # a minute between trials
     for p in people:
         for interface in study.interfaces:
             load = {"skin": 30, "skin_registered": 30, "keyboard": 45, "pendant": 55}[interface]
