@@ -21,15 +21,27 @@ from typing import IO, Any
 import numpy as np
 
 
+def _read_umask() -> int:
+    mask = os.umask(0o022)  # os.umask both sets and returns: read it once, at import
+    os.umask(mask)
+    return mask
+
+
+_NEW_FILE_MODE = 0o666 & ~_read_umask()  # what open(path, "w") would give a new file
+
+
 @contextmanager
 def atomic_writer(path: str | os.PathLike, *, binary: bool = True):
     """Open a temporary file beside ``path``; on a clean exit it replaces ``path``.
 
-    On an exception the temporary file is removed and ``path`` is left as it was.
+    On an exception the temporary file is removed and ``path`` is left as it was.  The
+    file gets the permissions a plain ``open(path, "w")`` would give it (a temporary file
+    is private, 0600, until then).
     """
     target = Path(path)
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".partial")
     try:
+        os.chmod(fd, _NEW_FILE_MODE)
         text_options = {} if binary else {"encoding": "utf-8"}
         with os.fdopen(fd, "wb" if binary else "w", **text_options) as f:
             yield f
