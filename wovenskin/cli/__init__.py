@@ -11,7 +11,10 @@ from wovenskin.cli.app import app
 # Importing a command module registers its commands; `--help` lists them in this order.
 # isort: off
 from wovenskin.cli import skin, stream, bench, training, robot  # noqa: F401, E402
+from wovenskin.cli.study import study_app  # noqa: E402
 # isort: on
+
+app.add_typer(study_app, name="study")
 
 
 def main() -> None:
