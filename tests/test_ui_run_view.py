@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import io
 
+import numpy as np
 from rich.console import Console
 from stand_ins import ContactMeans
+from test_control_session_inputs import idle_session
 
 from wovenskin.control.safety_limits import SafetyLimits
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.runtime.session import open_session
 from wovenskin.sim.stream import simulate_stream
+from wovenskin.teleop.keyboard import TerminalKeyboard
 from wovenskin.ui.run_view import handle_keys, render_run, run_with_view, terminal_keys
 
 
@@ -98,3 +101,25 @@ def test_the_screen_says_what_holds_the_arm_back_and_when_the_recogniser_is_unsu
     assert "workspace box" in held
     session.state.unsure = "unsure: swipe_left 0.55 / swipe_left_2f 0.40"
     assert "unsure: swipe_left 0.55 / swipe_left_2f 0.40" in screen_text(render_run(session))
+
+
+def test_keys_drive_the_arm_with_the_keyboard_input(tmp_path) -> None:
+    session = idle_session(tmp_path, seconds=3.0)
+    keyboard = TerminalKeyboard(clock=lambda: session.now)  # repeats timed on the skin clock
+    start: list = []
+
+    def read() -> str:
+        if session.now >= 1.2 and not start:
+            start.append(session.state.robot.tcp)
+        return "r" if 1.2 <= session.now < 2.0 else ""  # held: the auto-repeat sends "r"
+
+    console = Console(record=True, width=160, file=io.StringIO(), color_system=None)
+    result = run_with_view(session, console, fps=1000.0, read_keys=read, keyboard=keyboard)
+    session.close()
+    assert result.errors == 0
+    moved = session.state.robot.tcp.position - start[0].position
+    tool_z = start[0].rotation()[:, 2]  # r is swipe_up: translate +z of the tool
+    assert moved @ tool_z > 0.98 * np.linalg.norm(moved) > 0.015
+    assert [(c.source, c.name) for c in session.command_log] == [("keyboard", "swipe_up")]
+    text = console.export_text()
+    assert "r: translate +z" in text and "g: gripper" in text and "commands" in text

@@ -5,8 +5,10 @@ redraws at ``fps``: the conditioned skin with its contacts (the heatmap of
 :mod:`wovenskin.ui.terminal`), the recogniser's top class, the active command and since
 when, what the robot is doing, its TCP pose, speed and joints, and the stops with their
 reasons.  Where stdin is a terminal, keys act at once: space stops everything (press it
-again to resume), ``q`` quits.  :func:`render_run` builds one screen, for tests and
-snapshots.
+again to resume), ``q`` quits; with a :class:`~wovenskin.teleop.keyboard.TerminalKeyboard`
+(``wovenskin run --input keyboard``) the bound keys drive the arm too (held while their
+auto-repeat lasts) and the key map is shown.  :func:`render_run` builds one screen, for
+tests and snapshots.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from rich.text import Text
 
 from wovenskin.control.session import ControlSession
 from wovenskin.control.session_state import SessionResult
+from wovenskin.teleop.keyboard import TerminalKeyboard, key_map
 from wovenskin.ui.terminal import heatmap, live_screen
 
 STOP_KEY = " "
@@ -89,9 +92,13 @@ def run_with_view(
     fps: float = 20.0,
     title: str = "wovenskin run",
     read_keys: Callable[[], str] | None = None,
+    keyboard: TerminalKeyboard | None = None,
 ) -> SessionResult:
-    """Run ``session`` with the live view until it ends, ``q``, Ctrl-C or ``seconds``."""
+    """Run ``session`` with the live view until it ends, ``q``, Ctrl-C or ``seconds``;
+    ``keyboard``: the keys that drive the arm (added to the session's inputs)."""
     console = console or Console()
+    if keyboard is not None and keyboard not in session.inputs:
+        session.add_input(keyboard)
     period = 1.0 / fps
     session.start()
     with terminal_keys() as terminal_read:
@@ -102,23 +109,26 @@ def run_with_view(
 
                 def keep_going() -> bool:
                     nonlocal next_draw
-                    handle_keys(session, read())
+                    keys = read()
+                    handle_keys(session, keyboard.feed(keys) if keyboard is not None else keys)
                     now = time.monotonic()
                     if now >= next_draw:
-                        live.update(render_run(session, title), refresh=True)
+                        live.update(render_run(session, title, keyboard), refresh=True)
                         next_draw = max(next_draw + period, now)
                     return True
 
                 result = session.run(seconds, should_continue=keep_going)
-                live.update(render_run(session, title), refresh=True)
+                live.update(render_run(session, title, keyboard), refresh=True)
         except KeyboardInterrupt:
             session.request_quit("interrupted (Ctrl-C)")
             result = session.result()
     return result
 
 
-def render_run(session: ControlSession, title: str = "wovenskin run") -> Group:
-    """One screen of the view."""
+def render_run(
+    session: ControlSession, title: str = "wovenskin run", keyboard: TerminalKeyboard | None = None
+) -> Group:
+    """One screen of the view (with the key map when ``keyboard`` drives the arm)."""
     skin = session.live_skin.state
     info = session.live_skin.info
     heat = heatmap(skin.signal, skin.contacts, shape=(info.rows, info.cols))
@@ -128,6 +138,12 @@ def render_run(session: ControlSession, title: str = "wovenskin run") -> Group:
     grid.add_row(heat, _status(session))
     header = f"{title}  skin {info.rows}x{info.cols} @ {info.sample_rate_hz:g} Hz"
     keys = Text("space: stop / resume   q: quit", style="dim")
+    if keyboard is not None:
+        bindings = key_map(session.mapping, keyboard.layout, keyboard.gripper_key)
+        keys.append("\n" + "  ".join(f"{b.key}: {b.action}" for b in bindings[:6]))
+        keys.append("\n" + "  ".join(f"{b.key}: {b.action}" for b in bindings[6:12]))
+        keys.append("\n" + "  ".join(f"{b.key}: {b.action}" for b in bindings[12:]))
+        keys.append("   (hold a key to move; it stops when the key's auto-repeat stops)")
     messages = Text("\n".join(list(session.state.messages)[-5:]), style="dim")
     return Group(Panel(grid, title=header, expand=False), keys, messages)
 
@@ -150,6 +166,8 @@ def _status(session: ControlSession) -> Table:
     if st.gesture is not None:
         since = st.t - (st.gesture_since or st.t)
         table.add_row("command", Text(f"{st.gesture}  ({since:4.1f} s)", style="bold green"))
+    elif getattr(st, "held", None):
+        table.add_row("command", Text(str(st.held), style="bold green"))
     else:
         table.add_row("command", "none")
     unsure = getattr(st, "unsure", "")
@@ -177,6 +195,8 @@ def _status(session: ControlSession) -> Table:
         f"w {np.degrees(np.linalg.norm(twist[3:])):5.1f} deg/s",
     )
     table.add_row("stops", _stops_text(session))
+    if hasattr(session, "command_count"):
+        table.add_row("commands", str(session.command_count))
     if st.last_error:
         table.add_row("last error", Text(st.last_error[:60], style="red"))
     return table
