@@ -269,6 +269,13 @@ class SafetyLayer(Robot):
         self._in_move = False
         self.robot.stop()
 
+    def set_gripper(self, closed: bool) -> None:
+        """Pass a gripper command on (``True`` closes); refused while a stop holds the arm."""
+        self._require_running()
+        if not isinstance(closed, bool | np.bool_):
+            raise ValueError(f"gripper command must be True or False, got {closed!r}")
+        self.robot.set_gripper(bool(closed))
+
     def step(self, dt: float) -> None:
         """Advance a simulated backend, first re-checking the running twist over ``dt``."""
         if not (math.isfinite(dt) and dt >= 0.0):

@@ -87,6 +87,14 @@ class Pose:
 
 
 @dataclass(frozen=True)
+class GripperState:
+    """A parallel gripper: the last command (``closed``) and the measured opening."""
+
+    closed: bool  # the last command: True closes the fingers, False opens them
+    width: float  # m, between the fingers' inner faces (stops on a held object)
+
+
+@dataclass(frozen=True)
 class RobotState:
     """What a backend reports about its arm at one instant."""
 
@@ -97,6 +105,7 @@ class RobotState:
     tcp_twist: np.ndarray = field(default_factory=lambda: np.zeros(6))  # base frame, measured
     moving: bool = False
     fault: str | None = None  # one line when the arm is in a fault or protective stop
+    gripper: GripperState | None = None  # None: the arm has no gripper
 
     @property
     def tcp_speed(self) -> float:
@@ -196,6 +205,7 @@ class RobotCapabilities:
       fraction. The safety layer leaves that much headroom under its caps and keeps that
       share of the TCP's travel away from the workspace walls.
     - ``how_to_complete``: one line telling the user how to supply what is missing.
+    - ``gripper``: whether :meth:`Robot.set_gripper` drives a gripper on this arm.
 
     Joint limits are not here: every backend must give them (:meth:`Robot.joint_limits`).
     """
@@ -208,6 +218,7 @@ class RobotCapabilities:
     control_period_s: float = 0.0
     tracking_error: float = 0.0
     how_to_complete: str = ""
+    gripper: bool = False
 
     def __post_init__(self) -> None:
         if self.stop_time_s is not None and not (
@@ -293,6 +304,12 @@ class Robot(abc.ABC):
     @abc.abstractmethod
     def stop(self) -> None:
         """Stop now (within the arm's deceleration limits)."""
+
+    def set_gripper(self, closed: bool) -> None:
+        """Close (``True``) or open (``False``) the gripper; returns at once, and
+        ``state().gripper`` reports the opening. Raises :class:`RobotError` on an arm
+        without one (the default)."""
+        raise RobotError(f"this arm ({self.name}) has no gripper")
 
     def step(self, dt: float) -> None:  # noqa: B027 - optional hook, no-op for real arms
         """Advance a simulated arm by ``dt`` seconds; real arms move on their own."""

@@ -9,7 +9,10 @@ decelerates to rest within :data:`STOP_TIME_S` on ``stop``, and a refused comman
 the arm and raises :class:`RobotError` without starting any motion. One ``step`` advances
 at most :data:`MAX_STEP_S` (a longer one is cut, with a log line: the number of substeps
 stays bounded whatever the caller's clock does). The joint positions live in
-``data.qpos`` (kept up to date with ``mj_kinematics``) for viewers.
+``data.qpos`` (kept up to date with ``mj_kinematics``) for viewers. Given an
+:class:`~wovenskin.robots.sim.physics.ArmPhysics` (a task scene), every substep also runs
+that scene's physics with the arm's joints following, and :meth:`SimRobot.set_gripper`
+drives its gripper; without one (the default) nothing of that runs.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import numpy as np
 
 from wovenskin.robots.base import (
     N_JOINTS,
+    GripperState,
     JointLimits,
     Pose,
     Robot,
@@ -34,6 +38,7 @@ from wovenskin.robots.base import (
 )
 from wovenskin.robots.sim import tm5_900
 from wovenskin.robots.sim.ik import DifferentialIK, IKInfo
+from wovenskin.robots.sim.physics import ArmPhysics
 from wovenskin.robots.sim.tm5_900 import MODEL_FILE as MODEL_FILE  # re-exported
 from wovenskin.robots.sim.tm5_900 import load_model
 
@@ -116,7 +121,12 @@ class SimRobot(Robot):
 
     name = "sim"
 
-    def __init__(self, q0: np.ndarray | None = None, ik_rate_hz: float = 250.0) -> None:
+    def __init__(
+        self,
+        q0: np.ndarray | None = None,
+        ik_rate_hz: float = 250.0,
+        physics: ArmPhysics | None = None,
+    ) -> None:
         if not (math.isfinite(ik_rate_hz) and ik_rate_hz > 0.0):
             raise ValueError(f"ik_rate_hz must be a positive number, got {ik_rate_hz}")
         start = tm5_900.INITIAL_Q.copy() if q0 is None else np.asarray(q0, dtype=float)
@@ -143,6 +153,9 @@ class SimRobot(Robot):
         self._stopping: Stopping | None = None
         self._tcp_twist = np.zeros(6)
         self._velocity_mode = False
+        self.physics = physics
+        if physics is not None:
+            physics.place_arm(start)
         self._sync()
 
     # -- connection ----------------------------------------------------------------
@@ -186,6 +199,7 @@ class SimRobot(Robot):
             stop_time_s=STOP_TIME_S,
             control_period_s=1.0 / self.ik_rate_hz,
             tracking_error=TRACKING_ERROR,
+            gripper=self.physics is not None and self.physics.has_gripper,
         )
 
     def tcp_pose(self) -> Pose:
@@ -210,7 +224,11 @@ class SimRobot(Robot):
             tcp_twist=self._tcp_twist.copy(),
             moving=moving,
             fault=self._fault,
+            gripper=self._gripper_state(),
         )
+
+    def _gripper_state(self) -> GripperState | None:
+        return None if self.physics is None else self.physics.gripper_state()
 
     # -- commands ------------------------------------------------------------------
 
@@ -262,6 +280,15 @@ class SimRobot(Robot):
             move = JointMove(move.start, move.goal, move.v0, move.duration * peak / speed * 1.001)
         self._start_move(move)
 
+    def set_gripper(self, closed: bool) -> None:
+        """Close or open the task scene's gripper (the arm keeps doing what it does)."""
+        self._require_connected()
+        if self.physics is None or not self.physics.has_gripper:
+            raise RobotError("this arm has no gripper (load a task scene with one)")
+        if not isinstance(closed, bool | np.bool_):
+            raise RobotError(f"gripper command must be True or False, got {closed!r}")
+        self.physics.set_gripper(bool(closed))
+
     def stop(self) -> None:
         if self._stopping is not None:
             return
@@ -312,6 +339,13 @@ class SimRobot(Robot):
         self._t += h
         if h == 0.0:
             return
+        start = self._q
+        self._move_arm(h)
+        if self.physics is not None:
+            self.physics.advance(start, self._q, h)
+
+    def _move_arm(self, h: float) -> None:
+        """One substep of the kinematic arm: a twist, a joint move, a stop, or rest."""
         if self._velocity_mode and self._t - self._twist_t > STALE_COMMAND_S + 1e-9:
             self.last_stop_reason = f"no velocity command for {STALE_COMMAND_S} s"
             self.stop()

@@ -1,0 +1,135 @@
+"""Real-time factor of a task scene's physics (simulated seconds per wall second).
+
+``wovenskin bench tasks`` (or ``python -m wovenskin.bench.tasks [--task pour]``) resets
+the scene and measures, on this machine's wall clock:
+
+- **physics alone**: the scene stepped with the arm standing still (the particles resting
+  in the cup), and
+- **physics + arm control**: the control loop's share beside it, as the study runs it:
+  every ``tick`` (20 ms) a twist (a horizontal circle of the TCP at 0.1 m/s) goes through
+  :class:`~wovenskin.control.safety.SafetyLayer` (the task's workspace box), its watchdogs
+  are fed and checked, and the :class:`~wovenskin.robots.sim.robot.SimRobot` advances the
+  IK (250 Hz) and the physics (500 Hz) by one tick.
+
+Each is printed with its ratio to 1.0 (real time); >= 1 keeps up. The recogniser
+(``wovenskin bench control``) is not included: its cost adds to the same cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from rich.table import Table
+
+from wovenskin.bench.results import BenchResult, figure_table
+from wovenskin.control.safety import SafetyLayer
+from wovenskin.control.safety_limits import SafetyLimits
+from wovenskin.errors import ConfigError
+from wovenskin.tasks import TASKS, WORKSPACE_LOWER, WORKSPACE_UPPER, make_task
+
+CIRCLE_SPEED = 0.1  # m/s
+CIRCLE_RADIUS = 0.05  # m
+
+
+@dataclass
+class TasksBenchResult(BenchResult):
+    """The two real-time factors of one task scene."""
+
+    task: str
+    seconds: float  # simulated seconds each
+    tick_s: float
+    physics_rtf: float
+    control_rtf: float
+    contacts: int  # contacts at the end of the run with control
+
+    def table(self) -> Table:
+        table = figure_table(f"wovenskin bench tasks: the {self.task} scene's physics")
+        table.add_row(
+            f"physics alone, arm still ({self.seconds:g} s simulated)",
+            f"{self.physics_rtf:.2f} x real time (ratio to 1.0: {self.physics_rtf:.2f})",
+        )
+        table.add_row(
+            f"physics + arm control through the safety layer, {1000 * self.tick_s:g} ms ticks",
+            f"{self.control_rtf:.2f} x real time (ratio to 1.0: {self.control_rtf:.2f})",
+        )
+        table.add_row("contacts in the scene at the end", str(self.contacts))
+        return table
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def physics_rtf(task_name: str, seconds: float, seed: int = 0) -> float:
+    """Simulated seconds per wall second of the scene alone (the arm still)."""
+    task = make_task(task_name)
+    task.reset(seed)
+    physics = task.physics
+    q = physics.data.qpos[physics.arm_qpos].copy()
+    start = time.perf_counter()
+    physics.advance(q, q, seconds)
+    return seconds / (time.perf_counter() - start)
+
+
+def control_rtf(
+    task_name: str, seconds: float, tick: float = 0.02, seed: int = 0
+) -> tuple[float, int]:
+    """Simulated seconds per wall second of the scene with the arm under control, and the
+    number of contacts at the end."""
+    task = make_task(task_name)
+    task.reset(seed)
+    clock = _Clock()
+    limits = SafetyLimits(workspace_lower=WORKSPACE_LOWER, workspace_upper=WORKSPACE_UPPER)
+    robot = SafetyLayer(task.robot(), limits, clock=clock)
+    robot.connect()
+    omega = CIRCLE_SPEED / CIRCLE_RADIUS
+    ticks = max(1, round(seconds / tick))
+    start = time.perf_counter()
+    for i in range(ticks):
+        angle = omega * i * tick
+        twist = np.array([-math.sin(angle), math.cos(angle), 0.0, 0.0, 0.0, 0.0]) * CIRCLE_SPEED
+        robot.heartbeat_skin(clock.now)
+        robot.send_twist(twist)
+        robot.check(clock.now)
+        robot.step(tick)
+        clock.now += tick
+    wall = time.perf_counter() - start
+    return ticks * tick / wall, int(task.physics.data.ncon)
+
+
+def run_tasks_benchmark(
+    task: str = "pour", seconds: float = 5.0, tick: float = 0.02, seed: int = 0
+) -> TasksBenchResult:
+    """Both real-time factors of ``task``'s scene (module docstring)."""
+    if task not in TASKS:
+        raise ConfigError(f"unknown task {task!r}; known tasks: {', '.join(sorted(TASKS))}")
+    if not (math.isfinite(seconds) and seconds > 0.0):
+        raise ConfigError(f"seconds must be positive, got {seconds}")
+    if not (math.isfinite(tick) and 0.0 < tick <= 0.1):
+        raise ConfigError(f"tick must be in (0, 0.1] s, got {tick}")
+    alone = physics_rtf(task, seconds, seed)
+    controlled, contacts = control_rtf(task, seconds, tick, seed)
+    return TasksBenchResult(task, seconds, tick, alone, controlled, contacts)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="pour", choices=sorted(TASKS))
+    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--tick", type=float, default=0.02)
+    args = parser.parse_args(argv)
+    from rich.console import Console
+
+    Console().print(run_tasks_benchmark(args.task, args.seconds, args.tick).table())
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,35 @@
+"""The study's task scenes on the simulated TM5-900 with a gripper, and their registry.
+
+:mod:`.scene` builds the table scene around the gripper arm, :mod:`.shapes` the
+pick-and-place shapes and molds, :mod:`.pick_place` and :mod:`.pour` the two tasks on the
+:class:`~wovenskin.tasks.base.Task` interface; :func:`make_task` opens one by name.
+"""
+
+from wovenskin.errors import ConfigError
+from wovenskin.tasks.base import WORKSPACE_LOWER, WORKSPACE_UPPER, Task
+from wovenskin.tasks.pick_place import PickPlaceState, PickPlaceTask
+from wovenskin.tasks.pour import PourState, PourTask
+
+TASKS: dict[str, type[Task]] = {"pick_place": PickPlaceTask, "pour": PourTask}
+
+
+def make_task(name: str) -> Task:
+    """A new task scene by its registry name (``pick_place``, ``pour``)."""
+    try:
+        return TASKS[name]()
+    except KeyError:
+        known = ", ".join(sorted(TASKS))
+        raise ConfigError(f"unknown task {name!r}; known tasks: {known}") from None
+
+
+__all__ = [
+    "TASKS",
+    "WORKSPACE_LOWER",
+    "WORKSPACE_UPPER",
+    "PickPlaceState",
+    "PickPlaceTask",
+    "PourState",
+    "PourTask",
+    "Task",
+    "make_task",
+]
