@@ -297,7 +297,7 @@ class SessionInputs:
         self.gripper_closed = closed
         self._message(f"{t:8.2f} s  gripper {'closes' if closed else 'opens'}")
         drive = self.on_gripper
-        if drive is None and getattr(self.safety.capabilities(), "gripper", False):
+        if drive is None and self.safety.capabilities().gripper:
             drive = self.safety.set_gripper  # through the safety layer (refused while stopped)
         if drive is None:
             return
