@@ -4,16 +4,23 @@ import json
 
 import pytest
 
-from wovenskin.bench.tasks import run_tasks_benchmark
+from wovenskin.bench.tasks import _SkinFeed, run_tasks_benchmark
 from wovenskin.errors import ConfigError
 
 
-def test_short_run_reports_both_factors():
+def test_short_run_reports_the_three_factors():
     result = run_tasks_benchmark("pick_place", seconds=0.2, tick=0.02)
-    assert result.physics_rtf > 0.0 and result.control_rtf > 0.0
+    assert result.physics_rtf > 0.0 and result.control_rtf > 0.0 and result.full_rtf > 0.0
     assert result.task == "pick_place" and result.contacts >= 1
     json.dumps(result.to_dict())
-    assert result.table().row_count == 3
+    assert result.table().row_count == 4
+
+
+def test_the_skin_feed_runs_the_recogniser_on_every_frame_it_is_given():
+    feed = _SkinFeed(seconds=1.0, seed=3)
+    feed.feed(1.5)
+    assert feed.next == 300  # 1.5 s at 200 Hz
+    assert feed.pipeline.streaming.windows_predicted > 0
 
 
 @pytest.mark.parametrize(

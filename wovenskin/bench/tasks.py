@@ -1,7 +1,7 @@
 """Real-time factor of a task scene's physics (simulated seconds per wall second).
 
-``wovenskin bench tasks`` (or ``python -m wovenskin.bench.tasks [--task pour]``) resets
-the scene and measures, on this machine's wall clock:
+``wovenskin bench tasks [--task pour]`` resets the scene and measures, on this machine's
+wall clock:
 
 - **physics alone**: the scene stepped with the arm standing still (the particles resting
   in the cup), and
@@ -9,15 +9,17 @@ the scene and measures, on this machine's wall clock:
   every ``tick`` (20 ms) a twist (a horizontal circle of the TCP at 0.1 m/s) goes through
   :class:`~wovenskin.control.safety.SafetyLayer` (the task's workspace box), its watchdogs
   are fed and checked, and the :class:`~wovenskin.robots.sim.robot.SimRobot` advances the
-  IK (250 Hz) and the physics (500 Hz) by one tick.
+  IK (250 Hz) and the physics (500 Hz) by one tick, and
+- **physics + arm control + recogniser**: the same loop, and every tick the skin frames
+  of that tick (200 Hz: 4 per 20 ms, from a simulated person's stream made beforehand)
+  go through conditioning, the shipped recogniser (ONNX Runtime, every frame, one thread)
+  and the arbiter, as in ``wovenskin run``.
 
-Each is printed with its ratio to 1.0 (real time); >= 1 keeps up. The recogniser
-(``wovenskin bench control``) is not included: its cost adds to the same cores.
+Each is printed with its ratio to 1.0 (real time); >= 1 keeps up.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 from dataclasses import dataclass
@@ -29,6 +31,14 @@ from wovenskin.bench.results import BenchResult, figure_table
 from wovenskin.control.safety import SafetyLayer
 from wovenskin.control.safety_limits import SafetyLimits
 from wovenskin.errors import ConfigError
+from wovenskin.recognition.pipeline import (
+    LivePipeline,
+    conditioning_for_model,
+    load_recognizer,
+    pipeline_settings_for_model,
+)
+from wovenskin.signal.conditioner import LiveConditioner
+from wovenskin.sim.stream import simulate_stream
 from wovenskin.tasks import TASKS, WORKSPACE_LOWER, WORKSPACE_UPPER, make_task
 
 CIRCLE_SPEED = 0.1  # m/s
@@ -45,6 +55,7 @@ class TasksBenchResult(BenchResult):
     physics_rtf: float
     control_rtf: float
     contacts: int  # contacts at the end of the run with control
+    full_rtf: float  # physics + control + conditioning, recogniser and arbiter
 
     def table(self) -> Table:
         table = figure_table(f"wovenskin bench tasks: the {self.task} scene's physics")
@@ -55,6 +66,10 @@ class TasksBenchResult(BenchResult):
         table.add_row(
             f"physics + arm control through the safety layer, {1000 * self.tick_s:g} ms ticks",
             f"{self.control_rtf:.2f} x real time (ratio to 1.0: {self.control_rtf:.2f})",
+        )
+        table.add_row(
+            "physics + arm control + conditioning, recogniser (every frame) and arbiter",
+            f"{self.full_rtf:.2f} x real time (ratio to 1.0: {self.full_rtf:.2f})",
         )
         table.add_row("contacts in the scene at the end", str(self.contacts))
         return table
@@ -79,13 +94,43 @@ def physics_rtf(task_name: str, seconds: float, seed: int = 0) -> float:
     return seconds / (time.perf_counter() - start)
 
 
+class _SkinFeed:
+    """A simulated person's skin stream fed tick by tick through the live recognition path."""
+
+    def __init__(self, seconds: float, seed: int) -> None:
+        self.stream = simulate_stream(seconds + 1.0, seed)
+        recognizer = load_recognizer()
+        conditioning = conditioning_for_model(recognizer)
+        _, rows, cols = self.stream.frames.shape
+        rate = float(self.stream.sample_rate_hz)
+        self.conditioner = LiveConditioner(conditioning, rows, cols)
+        self.pipeline = LivePipeline(
+            recognizer, rows, cols, rate, conditioning, pipeline_settings_for_model(recognizer)
+        )
+        self.rate = rate
+        self.next = 0
+
+    def feed(self, seconds: float) -> None:
+        """The next ``seconds`` of raw frames through conditioning, recogniser and arbiter."""
+        stop = min(self.next + round(seconds * self.rate), len(self.stream.frames))
+        out = self.conditioner.feed(self.stream.frames[self.next : stop])
+        if out is not None and len(out):
+            t = self.stream.t[stop - len(out) : stop]
+            self.pipeline.process(t, out.signal, out.active, out.touched)
+        self.next = stop
+
+
 def control_rtf(
-    task_name: str, seconds: float, tick: float = 0.02, seed: int = 0
+    task_name: str, seconds: float, tick: float = 0.02, seed: int = 0, recognise: bool = False
 ) -> tuple[float, int]:
-    """Simulated seconds per wall second of the scene with the arm under control, and the
-    number of contacts at the end."""
+    """Simulated seconds per wall second of the scene with the arm under control (and, with
+    ``recognise``, a skin stream through the recogniser each tick), and the number of
+    contacts at the end."""
     task = make_task(task_name)
     task.reset(seed)
+    skin = _SkinFeed(seconds, seed) if recognise else None
+    if skin is not None:
+        skin.feed(1.0)  # calibration (the first second is contact-free), before the clock
     clock = _Clock()
     limits = SafetyLimits(workspace_lower=WORKSPACE_LOWER, workspace_upper=WORKSPACE_UPPER)
     robot = SafetyLayer(task.robot(), limits, clock=clock)
@@ -96,6 +141,8 @@ def control_rtf(
     for i in range(ticks):
         angle = omega * i * tick
         twist = np.array([-math.sin(angle), math.cos(angle), 0.0, 0.0, 0.0, 0.0]) * CIRCLE_SPEED
+        if skin is not None:
+            skin.feed(tick)
         robot.heartbeat_skin(clock.now)
         robot.send_twist(twist)
         robot.check(clock.now)
@@ -117,19 +164,5 @@ def run_tasks_benchmark(
         raise ConfigError(f"tick must be in (0, 0.1] s, got {tick}")
     alone = physics_rtf(task, seconds, seed)
     controlled, contacts = control_rtf(task, seconds, tick, seed)
-    return TasksBenchResult(task, seconds, tick, alone, controlled, contacts)
-
-
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="pour", choices=sorted(TASKS))
-    parser.add_argument("--seconds", type=float, default=5.0)
-    parser.add_argument("--tick", type=float, default=0.02)
-    args = parser.parse_args(argv)
-    from rich.console import Console
-
-    Console().print(run_tasks_benchmark(args.task, args.seconds, args.tick).table())
-
-
-if __name__ == "__main__":
-    main()
+    full, _ = control_rtf(task, seconds, tick, seed, recognise=True)
+    return TasksBenchResult(task, seconds, tick, alone, controlled, contacts, full)

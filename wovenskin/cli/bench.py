@@ -204,6 +204,24 @@ def bench_control(
     show_bench(result, json_out)
 
 
+@bench_app.command("tasks")
+@user_errors
+def bench_tasks(
+    task: str = typer.Option("pour", help="The task scene: pour or pick_place."),
+    seconds: float = typer.Option(5.0, help="Simulated seconds per measurement."),
+    tick: float = typer.Option(0.02, help="Control tick in seconds."),
+    seed: int = typer.Option(0, help="Seed of the scene and the simulated person."),
+    json_out: bool = JSON_OUT,
+) -> None:
+    """Real-time factor of a study task's physics: alone, with the arm under control, and
+    with the recogniser running on a simulated skin beside them (>= 1 keeps up)."""
+    from wovenskin.bench.tasks import run_tasks_benchmark
+
+    with err_console.status(f"stepping the {task} scene..."):
+        result = run_tasks_benchmark(task, seconds, tick, seed)
+    show_bench(result, json_out)
+
+
 @bench_app.command("safety")
 @user_errors
 def bench_safety(
