@@ -1,9 +1,9 @@
 """Opening a robot-control session: the live chain (:mod:`wovenskin.runtime.pipeline`) with
-mapping, safety and robot."""
+mapping, safety and robot, optionally on a study task's scene and with inputs beside the skin."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -12,14 +12,17 @@ from wovenskin.control.mapping import ActionMapping
 from wovenskin.control.poses import PoseStore
 from wovenskin.control.safety_limits import SafetyLimits
 from wovenskin.control.session import ControlSession
+from wovenskin.control.session_inputs import CommandInput
 from wovenskin.control.session_state import SessionSettings
 from wovenskin.control.trace import TraceWriter
+from wovenskin.errors import ConfigError
 from wovenskin.io import to_jsonable
 from wovenskin.recognition.pipeline import PipelineSettings, load_recognizer
 from wovenskin.robots.base import Robot
 from wovenskin.robots.registry import make_robot
 from wovenskin.runtime.pipeline import open_live_pipeline
 from wovenskin.runtime.sources import skin_spec
+from wovenskin.tasks import WORKSPACE_LOWER, WORKSPACE_UPPER, Task, make_task
 
 FAST_SPEEDS = ("0", "0.0")  # a source's speed option meaning "as fast as read"
 
@@ -42,6 +45,8 @@ def open_session(
     on_message: Callable[[str], None] | None = None,
     on_tick: Callable[[ControlSession], None] | None = None,
     source_options: dict[str, Any] | None = None,
+    task: str | Task | None = None,
+    inputs: Iterable[CommandInput] = (),
 ) -> ControlSession:
     """Wire skin, conditioning, recogniser, arbiter, mapping, safety and robot.
 
@@ -52,7 +57,19 @@ def open_session(
     execution rules (default: the model's recommended arbiter settings); ``record``: a
     ``.wsrec`` path for the skin frames, predictions, commands and robot state;
     ``source_options``: spec options to add where the spec does not set them.
+
+    ``skin`` ``none`` is no skin (idle frames keep the clock: keyboard or pendant only).
+    ``task`` (a name such as ``pick_place`` or a :class:`~wovenskin.tasks.Task`) puts the
+    simulated arm in that task's scene: the robot is ``task.robot()`` (``robot`` must be
+    ``sim``), the limits default to the tasks' workspace box, and the session's ``task``
+    attribute holds it (``None`` without a task).  ``inputs`` are polled every tick
+    beside the skin (:meth:`~wovenskin.control.session.ControlSession.add_input`).
     """
+    scene = task_for_session(task, robot)
+    if scene is not None:
+        robot = scene.robot()
+        if limits is None:
+            limits = task_limits()
     recognizer = recognizer if recognizer is not None else load_recognizer(model)
     action_mapping = ActionMapping.load(mapping)
     pose_store = PoseStore.load(poses)
@@ -94,5 +111,31 @@ def open_session(
         on_message=on_message,
         on_tick=on_tick,
     )
+    if scene is not None:
+        context["session"]["task"] = scene.name
     session.recording_context = context
+    session.task = scene  # type: ignore[attr-defined]  # the session's scene, if any
+    for source in inputs:
+        session.add_input(source)
     return session
+
+
+def task_for_session(task: str | Task | None, robot: str | Robot) -> Task | None:
+    """The task a session runs on (``None`` for none); a task with a robot other than
+    ``sim`` is one :class:`ConfigError` line: tasks run on the simulated arm."""
+    if task is None:
+        return None
+    if not (isinstance(robot, str) and robot.strip().lower() == "sim"):
+        name = robot if isinstance(robot, str) else type(robot).__name__
+        raise ConfigError(
+            f"robot {name!r} with a task: tasks run on the simulated arm (use --robot sim)"
+        )
+    return make_task(task) if isinstance(task, str) else task
+
+
+def task_limits() -> SafetyLimits:
+    """The default safety limits on a task's scene: the tasks' workspace box, low enough
+    for the gripper to reach the table."""
+    return SafetyLimits(
+        workspace_lower=WORKSPACE_LOWER.copy(), workspace_upper=WORKSPACE_UPPER.copy()
+    )

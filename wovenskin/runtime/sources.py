@@ -7,7 +7,9 @@ Specs (the ``--skin`` option of every command; parsed by :func:`wovenskin.specs.
 - ``serial:/dev/ttyACM0`` or ``serial:/dev/ttyACM0?format=text&order=col-major`` -- a
   real skin on a serial port (binary protocol of ``docs/protocol.md`` or text lines);
 - ``replay:FILE`` -- a labelled-stream ``.npz`` or a native ``.wsrec`` recording played
-  back in real time (``replay:FILE?speed=0`` plays as fast as possible).
+  back in real time (``replay:FILE?speed=0`` plays as fast as possible);
+- ``none`` or ``none:speed=0`` -- no skin: contact-free frames at 200 Hz that keep the
+  session's clock for keyboard- or pendant-only sessions (:mod:`wovenskin.runtime.idle`).
 """
 
 from __future__ import annotations
@@ -15,12 +17,14 @@ from __future__ import annotations
 from typing import Any
 
 from wovenskin.recording.replay import ReplaySource
+from wovenskin.runtime.idle import IdleSkinSource
 from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.serial_source import SerialSkinSource
 from wovenskin.skin.source import SkinSource
 from wovenskin.specs import Spec, SpecError, parse_spec
 
-SOURCE_KINDS = "use sim, serial:PORT or replay:FILE"
+SOURCE_KINDS = "use sim, serial:PORT, replay:FILE or none"
+SOURCE_NAMES = ("sim", "serial", "replay", "none")
 
 
 def skin_spec(spec: str | Spec, **overrides: Any) -> Spec:
@@ -31,7 +35,7 @@ def skin_spec(spec: str | Spec, **overrides: Any) -> Spec:
         parsed = parse_spec(spec.text, {**spec.options, **given}) if given else spec
     else:
         parsed = parse_spec(spec, overrides)
-    if parsed.kind not in ("sim", "serial", "replay"):
+    if parsed.kind not in SOURCE_NAMES:
         raise SpecError(parsed.text, f"is an unknown skin source: {SOURCE_KINDS}")
     return parsed
 
@@ -43,9 +47,13 @@ def open_source(spec: str | Spec = "sim", **overrides: Any) -> SkinSource:
     out).  A bad spec or option is one :class:`~wovenskin.errors.ConfigError` line."""
     parsed = skin_spec(spec, **overrides)
     options = dict(parsed.options)
-    if parsed.kind == "sim":
+    if parsed.kind in ("sim", "none"):
         if parsed.target:
-            raise SpecError(parsed.text, "gives the simulated skin a target: use sim:KEY=VALUE,...")
+            name = "the simulated skin" if parsed.kind == "sim" else "no skin"
+            example = f"{parsed.kind}:KEY=VALUE,..."
+            raise SpecError(parsed.text, f"gives {name} a target: use {example}")
+        if parsed.kind == "none":
+            return IdleSkinSource.from_options(options)
         return SimulatedSkinSource.from_options(options)
     if not parsed.target:
         example = "serial:/dev/ttyACM0" if parsed.kind == "serial" else "replay:stream.npz"
