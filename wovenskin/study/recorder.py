@@ -33,7 +33,8 @@ EVENTS_FILE = "events.jsonl"
 TRIAL_FORMAT = "wovenskin-trial/1"
 
 COMMAND_KINDS = ("gesture", "key", "panel", "gripper")
-OUTCOMES = ("success", "give_up", "timeout", "aborted")
+# "failed": the task itself can no longer succeed (a spill, an object off the table).
+OUTCOMES = ("success", "give_up", "timeout", "aborted", "failed")
 COMMAND_COLUMNS = ("t", "source", "command", "kind")
 TRAJECTORY_COLUMNS = ("t", "x", "y", "z", "qw", "qx", "qy", "qz", "gripper")
 # The measures the two tasks report, given columns of their own in trials.csv.
