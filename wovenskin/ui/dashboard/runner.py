@@ -11,6 +11,11 @@ to the recogniser or the robot.
 
 A command that cannot be carried out (a bad value, a robot that refuses, a skin that is
 not simulated) is reported as one line in the page's messages; it never stops the loop.
+
+A study task (``pick_place``, ``pour``: :mod:`wovenskin.tasks`) is chosen like a skin or
+robot: the session is reopened on the task's scene (the opener gets ``task=`` a new
+:class:`~wovenskin.tasks.Task`).  The page's keyboard and pendant (:mod:`.teleop`) are
+inputs of every session; trials are run by :mod:`.trials` into the study folder.
 """
 
 from __future__ import annotations
@@ -31,11 +36,15 @@ from wovenskin.runtime.sources import skin_spec
 from wovenskin.signal.live_skin import RateMeter
 from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.ports import list_ports
-from wovenskin.ui.dashboard.scene import ArmScene
+from wovenskin.tasks import TASKS, Task, make_task
+from wovenskin.ui.dashboard.scene import ArmScene, TaskScene
 from wovenskin.ui.dashboard.snapshot import Timeline, TimelineEntry, build_snapshot
+from wovenskin.ui.dashboard.teleop import INTERFACES, PageInputs, check_interface
+from wovenskin.ui.dashboard.trials import StudyPanel
 
-SessionOpener = Callable[[str, str], ControlSession]
-"""``opener(skin_spec, robot_spec)`` -> an unstarted session."""
+SessionOpener = Callable[..., ControlSession]
+"""``opener(skin_spec, robot_spec)`` -> an unstarted session; with a task chosen it is
+called as ``opener(skin_spec, robot_spec, task=Task)`` (``open_session(..., task=)``)."""
 
 COMMANDS = (
     "stop",
@@ -49,7 +58,12 @@ COMMANDS = (
     "perform",
     "autoplay",
     "switch",
+    "task",
+    "interface",
+    "gripper",
+    "trial",
 )
+TASK_STATE_PERIOD_S = 0.2  # the task's measures in the page: 5 per second (pour: 1 ms each)
 DEFAULT_SIM_LOOKAHEAD = "0.03"  # s of frames the simulated skin renders ahead (touch latency)
 
 
@@ -84,6 +98,9 @@ class DashboardRunner:
         *,
         ui_rate_hz: float = 40.0,
         record_dir: str | Path = "recordings",
+        task: str | None = None,
+        interface: str = "skin",
+        study_dir: str | Path | None = None,
     ) -> None:
         if not 1.0 <= ui_rate_hz <= 120.0:
             raise ConfigError(f"page update rate must be 1-120 Hz, got {ui_rate_hz}")
@@ -94,6 +111,12 @@ class DashboardRunner:
         self.record_dir = Path(record_dir)
         self.session: ControlSession | None = None
         self.scene: ArmScene | None = None
+        self.task_name = _checked_task(task)
+        self.task: Task | None = None  # the running session's scene
+        self.task_scene: TaskScene | None = None
+        self.inputs = PageInputs(interface)
+        self.study = StudyPanel(study_dir)
+        self._task_state: tuple[float, dict | None] = (-1.0, None)
         self.timeline = Timeline()
         self.latency = TouchLatency()
         self._commands: queue.Queue[dict] = queue.Queue()
@@ -114,7 +137,7 @@ class DashboardRunner:
 
     def start(self) -> None:
         """Open and start the session (errors propagate: nothing runs), then the thread."""
-        self.session = self._open(self.skin_spec, self.robot_spec)
+        self.session = self._open(self.skin_spec, self.robot_spec, self.task_name)
         self._thread = threading.Thread(target=self._loop, name="dashboard-session", daemon=True)
         self._thread.start()
 
@@ -123,6 +146,7 @@ class DashboardRunner:
         if self._thread is not None:
             self._thread.join(timeout=5.0)
         if self.session is not None:
+            self.study.abandon(float(self.session.now))
             self.session.close()
             self.session = None
 
@@ -148,7 +172,17 @@ class DashboardRunner:
             "ports": _serial_ports(),
             "skin": self.skin_spec,
             "robot": self.robot_spec,
+            "task": self.task_scene.describe() if self.task_scene is not None else None,
+            "tasks": ["none", *TASKS],
+            "interfaces": list(INTERFACES),
+            "keys": self.inputs.key_map(self.session) if self.session is not None else [],
+            "study": None if self.study.study_dir is None else str(self.study.study_dir),
         }
+
+    @property
+    def scene_key(self) -> str:
+        """What the page's 3D view shows: it needs :meth:`describe` again when this changes."""
+        return f"{self.robot_spec}|{self.task_name or ''}"
 
     def _workspace(self) -> dict | None:
         """The safety layer's workspace box (m, base frame), drawn in the 3D view."""
@@ -183,12 +217,22 @@ class DashboardRunner:
 
     # -- the session thread
 
-    def _open(self, skin: str, robot: str) -> ControlSession:
-        """Build and start a session for ``skin`` and ``robot`` (errors propagate)."""
+    def _open(self, skin: str, robot: str, task: str | None) -> ControlSession:
+        """Build and start a session for ``skin``, ``robot`` and ``task`` (errors propagate)."""
         skin = _with_lookahead(skin)
-        return self._begin(self._opener(skin, robot), skin, robot)
+        session, scene = self._build(skin, robot, task)
+        return self._begin(session, skin, robot, scene)
 
-    def _begin(self, session: ControlSession, skin: str, robot: str) -> ControlSession:
+    def _build(self, skin: str, robot: str, task: str | None) -> tuple[ControlSession, Task | None]:
+        """An unstarted session (on a new scene of ``task``, when given) and that scene."""
+        if task is None:
+            return self._opener(skin, robot), None
+        scene = make_task(task)
+        return self._opener(skin, robot, task=scene), scene
+
+    def _begin(
+        self, session: ControlSession, skin: str, robot: str, task: Task | None = None
+    ) -> ControlSession:
         """Start a built session and make it this runner's view of the world."""
         try:
             session.start()
@@ -196,6 +240,10 @@ class DashboardRunner:
             session.close()
             raise
         self.skin_spec, self.robot_spec = skin, robot
+        self.task, self.task_name = task, (task.name if task is not None else None)
+        self.task_scene = TaskScene(task) if task is not None else None
+        self._task_state = (-1.0, None)
+        self.inputs.attach(session)
         self.scene = ArmScene.for_robot(session.robot)
         if self.scene is None:
             session.state.messages.append("no kinematic model of this arm: the view shows the TCP")
@@ -221,6 +269,13 @@ class DashboardRunner:
             if ticks:
                 self._loop_rate.add(ticks, now)
             self._watch(session, now)
+            try:
+                line = self.study.tick(float(session.now))
+            except Exception as exc:  # a trial that cannot log ends; the session goes on
+                line = f"error: trial stopped: {type(exc).__name__}: {exc}"
+                self.study.trial = self.study.recorder = None
+            if line:
+                session.state.messages.append(line)
             if now >= self._next_publish:  # a fixed schedule: the rate holds on average
                 period = 1.0 / self.ui_rate_hz
                 self._next_publish = max(self._next_publish + period, now)
@@ -260,6 +315,9 @@ class DashboardRunner:
             "latency": self.latency.to_dict(),
             "autoplay": self._autoplay(),
             "failure": self.failure,
+            "teleop": self.inputs.part(session),
+            "study": self.study.part(float(session.now)),
+            "task": self._task_part(session),
         }
         snapshot = build_snapshot(
             session,
@@ -273,6 +331,17 @@ class DashboardRunner:
         )
         with self._lock:
             self._snapshot = snapshot
+
+    def _task_part(self, session: ControlSession) -> dict | None:
+        """The task's name, measures (every :data:`TASK_STATE_PERIOD_S`) and poses."""
+        if self.task is None or self.task_scene is None:
+            return None
+        t = float(session.now)
+        last_t, state = self._task_state
+        if state is None or not 0.0 <= t - last_t < TASK_STATE_PERIOD_S:
+            state = self.task.to_dict()
+            self._task_state = (t, state)
+        return {"name": self.task.name, "state": state, **self.task_scene.poses()}
 
     def _drain_commands(self) -> None:
         while True:
@@ -329,9 +398,32 @@ class DashboardRunner:
             self._switch(
                 str(command.get("skin") or self.skin_spec),
                 str(command.get("robot") or self.robot_spec),
+                self.task_name,
             )
+        elif name == "task":
+            task = command.get("task")
+            self._switch(self.skin_spec, self.robot_spec, _checked_task(task))
+        elif name == "interface":
+            if self.study.running:
+                raise ConfigError("a trial is running: end it before changing the interface")
+            self.inputs.choose(check_interface(command.get("interface")))
+            if (scale := self.inputs.speed()) is not None:
+                session.set_speed_scale(scale)
+            session.state.messages.append(f"interface: {self.inputs.interface}")
+        elif name == "gripper":
+            self.inputs.gripper(session)
+        elif name == "trial":
+            self._trial(session, str(command.get("op")), command.get("participant"))
 
-    def _switch(self, skin: str, robot: str) -> None:
+    def _trial(self, session: ControlSession, op: str, participant: object) -> None:
+        t = float(session.now)
+        if op == "start":
+            line = self.study.start(session, self.task, self.inputs.interface, participant, t)
+        else:
+            line = self.study.end(t, op)
+        session.state.messages.append(line)
+
+    def _switch(self, skin: str, robot: str, task: str | None = None) -> None:
         """Replace this session by one with another skin or robot.
 
         The new session is built completely first (spec parsed, skin source and robot
@@ -341,9 +433,11 @@ class DashboardRunner:
         closed and the new one started; if starting fails (a device that does not answer)
         the old one is reopened, so the page never ends up with nothing.
         """
+        if self.study.running:
+            raise ConfigError("a trial is running: end it before switching")
         try:
             skin = _with_lookahead(skin)
-            candidate = self._opener(skin, robot)  # builds everything, connects nothing
+            candidate, scene = self._build(skin, robot, task)  # builds all, connects nothing
         except Exception as exc:
             why = " ".join(str(exc).split()) or type(exc).__name__
             raise ConfigError(
@@ -352,21 +446,23 @@ class DashboardRunner:
             ) from exc
         old = self.session
         assert old is not None
-        old_skin, old_robot = self.skin_spec, self.robot_spec
+        old_skin, old_robot, old_task = self.skin_spec, self.robot_spec, self.task_name
         speed, messages = old.speed_scale, list(old.state.messages)
         old.close()
         try:
-            self.session = self._begin(candidate, skin, robot)
+            self.session = self._begin(candidate, skin, robot, scene)
             failure = None
         except Exception as exc:
-            self.session = self._open(old_skin, old_robot)
+            self.session = self._open(old_skin, old_robot, old_task)
             failure = exc
         self.session.speed_scale = speed
         self.session.state.messages.extend(messages)
         if failure is not None:
             why = f"could not start skin {skin!r} with robot {robot!r}: {failure}"
             raise ConfigError(why) from failure
-        self.session.state.messages.append(f"now: skin {self.skin_spec}, robot {self.robot_spec}")
+        on = f", task {self.task_name}" if self.task_name else ""
+        now = f"now: skin {self.skin_spec}, robot {self.robot_spec}{on}"
+        self.session.state.messages.append(now)
 
     def _sim_source(self) -> SimulatedSkinSource | None:
         source = self.session.live_skin.source if self.session is not None else None
@@ -375,6 +471,15 @@ class DashboardRunner:
     def _autoplay(self) -> bool | None:
         source = self._sim_source()
         return None if source is None else bool(source.autonomous)
+
+
+def _checked_task(task: object) -> str | None:
+    """A task name of the registry, or ``None`` for none (``"none"`` or empty)."""
+    if task in (None, "", "none"):
+        return None
+    if task not in TASKS:
+        raise ConfigError(f"unknown task {str(task)[:40]!r}; known: none, {', '.join(TASKS)}")
+    return str(task)
 
 
 def _with_lookahead(skin: str) -> str:

@@ -9,6 +9,12 @@ same arm the simulation moves.  Which model to draw is the backend's declaration
 (:mod:`wovenskin.robots.ur.models`: the model named in its spec, else a UR5e, said so in
 the page's messages).  An arm that declares no scene gets none: the page then shows the
 TCP only.
+
+:class:`TaskScene` does the same for a study task's physics scene (:mod:`wovenskin.tasks`):
+its fixed geoms (table, molds, container) with their poses once, its moving geoms (the
+objects, the cup, the gripper fingers) and its particles (small spheres named
+``particle_*``, sent as bare positions for the page to draw as one instanced mesh), posed
+from the physics state each frame.
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ import mujoco
 import numpy as np
 
 from wovenskin.robots.base import Robot
+from wovenskin.robots.sim.gripper import FINGER_JOINTS
 from wovenskin.skin.layout import SkinLayout
 
 _GEOM_TYPES = {
@@ -28,6 +35,7 @@ _GEOM_TYPES = {
     mujoco.mjtGeom.mjGEOM_BOX: "box",
     mujoco.mjtGeom.mjGEOM_ELLIPSOID: "sphere",
 }
+PARTICLE_PREFIX = "particle_"  # a task's particles: drawn instanced, positions only
 
 
 @dataclass(frozen=True)
@@ -114,3 +122,102 @@ class ArmScene:
         top_right = centre + up * half_h + right * half_w
         bottom_left = centre - up * half_h - right * half_w
         return [[round(float(v), 5) for v in p] for p in (top_left, top_right, bottom_left)]
+
+
+def _pose(data: mujoco.MjData, g: int, quat: np.ndarray) -> list[float]:
+    mujoco.mju_mat2Quat(quat, data.geom_xmat[g])
+    return [round(float(v), 5) for v in (*data.geom_xpos[g], *quat)]
+
+
+class TaskScene:
+    """The task scene's shapes and their poses (see the module docstring).
+
+    The arm and its gripper housing are :class:`ArmScene`'s; this draws every other geom
+    of the task's physics model and the fingers (named in ``hide``: the page hides the arm
+    model's own fingers, which do not slide)."""
+
+    def __init__(self, task: object) -> None:
+        physics = task.physics  # type: ignore[attr-defined]
+        self.name = str(getattr(task, "name", "task"))
+        self.model, self.data = physics.model, physics.data
+        arm_bodies = {0} | {int(self.model.body(name).id) for name in _arm_body_names(self.model)}
+        self.fixed: list[int] = []
+        self.moving: list[int] = []
+        self.particles: list[int] = []
+        for g in range(self.model.ngeom):
+            name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+            kind = int(self.model.geom_type[g])
+            if kind == mujoco.mjtGeom.mjGEOM_PLANE:
+                continue
+            body = int(self.model.geom_bodyid[g])
+            if name.startswith(PARTICLE_PREFIX) and kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+                self.particles.append(g)
+            elif name in FINGER_JOINTS or body not in arm_bodies or body == 0:
+                welded = int(self.model.body_weldid[body]) == 0
+                (self.fixed if welded else self.moving).append(g)
+        self.hide = [n for n in FINGER_JOINTS if any(self._name(g) == n for g in self.moving)]
+
+    def _name(self, g: int) -> str:
+        return mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom{g}"
+
+    def _shape(self, g: int) -> dict:
+        kind = int(self.model.geom_type[g])
+        shape = {
+            "name": self._name(g),
+            "type": "mesh" if kind == mujoco.mjtGeom.mjGEOM_MESH else _GEOM_TYPES.get(kind, "box"),
+            "size": [round(float(v), 5) for v in self.model.geom_size[g]],
+            "rgba": [round(float(v), 3) for v in self.model.geom_rgba[g]],
+        }
+        if shape["type"] == "mesh":
+            mesh = int(self.model.geom_dataid[g])
+            v0, nv = int(self.model.mesh_vertadr[mesh]), int(self.model.mesh_vertnum[mesh])
+            f0, nf = int(self.model.mesh_faceadr[mesh]), int(self.model.mesh_facenum[mesh])
+            vertices = self.model.mesh_vert[v0 : v0 + nv].reshape(-1)
+            shape["vertices"] = [round(float(v), 5) for v in vertices]
+            shape["faces"] = [int(i) for i in self.model.mesh_face[f0 : f0 + nf].reshape(-1)]
+        return shape
+
+    def describe(self) -> dict:
+        """The static part, sent once per page: fixed shapes with their poses, moving
+        shapes in the order of :meth:`poses`, the particles' count, radius and colour."""
+        quat = np.zeros(4)
+        size, rgba = self.model.geom_size, self.model.geom_rgba
+        particle = self.particles[0] if self.particles else None
+        return {
+            "name": self.name,
+            "fixed": [{**self._shape(g), "pose": _pose(self.data, g, quat)} for g in self.fixed],
+            "moving": [self._shape(g) for g in self.moving],
+            "particles": {
+                "count": len(self.particles),
+                "radius": 0.0 if particle is None else round(float(size[particle][0]), 5),
+                "rgba": [] if particle is None else [round(float(v), 3) for v in rgba[particle]],
+            },
+            "hide": self.hide,
+        }
+
+    def poses(self) -> dict:
+        """The moving shapes' ``[x, y, z, qw, qx, qy, qz]`` and the particles' positions
+        as one flat ``[x0, y0, z0, x1, ...]`` list (m, 0.1 mm steps), from the physics."""
+        quat = np.zeros(4)
+        centres = self.data.geom_xpos[self.particles].reshape(-1) if self.particles else ()
+        return {
+            "geoms": [_pose(self.data, g, quat) for g in self.moving],
+            "particles": [round(float(v), 4) for v in centres],
+        }
+
+
+def _arm_body_names(model: mujoco.MjModel) -> list[str]:
+    """The bodies of the arm and its gripper: the subtree under the arm's base body."""
+    base = int(model.body("base").id) if _has_body(model, "base") else 0
+    names = []
+    for b in range(1, model.nbody):
+        walk = b
+        while walk not in (0, base):
+            walk = int(model.body_parentid[walk])
+        if walk == base and base != 0:
+            names.append(model.body(b).name)
+    return names
+
+
+def _has_body(model: mujoco.MjModel, name: str) -> bool:
+    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) >= 0

@@ -7,7 +7,9 @@ server first sends the scene (``{"type": "scene"}``), then the runner's newest s
 page rate (latest only: a slow browser skips frames, the session never waits for it).  The
 browser sends ``{"type": "command", "cmd": ...}`` and ``{"type": "touch", "t": seconds,
 "touches": [{"id", "x_mm", "y_mm", "force_n"}, ...]}`` (or several such ``samples`` at
-once); the simulated skin plays timestamped touches at their own spacing, so a bunched
+once), ``{"type": "key"}`` and ``{"type": "pendant"}`` for the page's keyboard and
+teach pendant (:func:`.teleop.handle_input`) and ``{"type": "hold"}`` heartbeats; the
+simulated skin plays timestamped touches at their own spacing, so a bunched
 delivery does not distort a gesture.  A bad message gets one ``{"type": "error"}`` line
 back and changes nothing.
 
@@ -29,7 +31,9 @@ while its fingertips are on the virtual skin has them lifted (a lift-off: the co
 ends), and so has a page that sends nothing for :data:`TOUCH_SILENCE_S` while they are
 down (the page repeats resting fingers every 0.25 s: a hold-to-run heartbeat).  One page
 draws at a time (:class:`PageTouch`): the others' touches are refused until its fingers
-lift.  :func:`serve` runs uvicorn until Ctrl-C.
+lift.  Keys and jog buttons follow the same rule: a page that holds one and sends nothing
+for :data:`TOUCH_SILENCE_S` has it released (the page sends a ``hold`` heartbeat every
+0.25 s while one is held).  :func:`serve` runs uvicorn until Ctrl-C.
 """
 
 from __future__ import annotations
@@ -53,12 +57,14 @@ from fastapi.staticfiles import StaticFiles
 from wovenskin.recording.untrusted import loads_json
 from wovenskin.sim.live_touches import Fingertip
 from wovenskin.ui.dashboard.runner import DashboardRunner
+from wovenskin.ui.dashboard.teleop import PageHold, handle_input
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 COOKIE = "wovenskin_token"
 MAX_MESSAGE_BYTES = 16_384
 TOUCH_SILENCE_S = 1.0  # a page with fingers down sends at least every 0.25 s (its heartbeat)
 TOUCH_SILENCE_MESSAGE = "virtual fingers lifted: the page stopped sending while touching"
+HOLD_SILENCE_MESSAGE = "keys and jog button released: the page stopped sending while holding"
 
 
 def static_dir() -> Path:
@@ -299,19 +305,24 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
         replies: asyncio.Queue[str] = asyncio.Queue(maxsize=64)
         sender = asyncio.create_task(_send_states(ws, runner, replies))
         touch = PageTouch(virtual_skin)  # this page's fingertips on the virtual skin
+        hold = PageHold()  # this page's held keys and jog button
         try:
             while True:
-                if touch.down:  # hold-to-run: a page with fingers down keeps talking
+                if touch.down or hold.held:  # hold-to-run: a page holding keeps talking
                     try:
                         text = await asyncio.wait_for(_receive(ws), TOUCH_SILENCE_S)
                     except TimeoutError:
-                        runner.touch({})
-                        touch.set_down(False)
-                        runner.note(TOUCH_SILENCE_MESSAGE)
+                        if touch.down:
+                            runner.touch({})
+                            touch.set_down(False)
+                            runner.note(TOUCH_SILENCE_MESSAGE)
+                        if hold.held:
+                            _release(runner, hold)
+                            runner.note(HOLD_SILENCE_MESSAGE)
                         continue
                 else:
                     text = await _receive(ws)
-                reply = _handle(runner, text, touch)
+                reply = _handle(runner, text, touch, hold)
                 if reply is not None and not replies.full():
                     replies.put_nowait(json.dumps(reply))
         except WebSocketDisconnect:
@@ -324,6 +335,8 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
                 touch.set_down(False)
                 with contextlib.suppress(Exception):
                     runner.touch({})
+            with contextlib.suppress(Exception):
+                _release(runner, hold)
 
     return app
 
@@ -343,23 +356,34 @@ async def _send_states(ws: WebSocket, runner: DashboardRunner, replies: asyncio.
     and the replies to the browser's messages; the one task that writes to ``ws``."""
     await ws.send_text(json.dumps(runner.describe()))
     sent = -1
-    scene_robot = runner.robot_spec
+    scene_key = runner.scene_key
     poll = 0.5 / runner.ui_rate_hz  # twice per page frame: no state waits a whole period
     while True:
         while not replies.empty():
             await ws.send_text(replies.get_nowait())
         snapshot = runner.latest()
         if snapshot is not None and snapshot["seq"] != sent:
-            if runner.robot_spec != scene_robot:  # another robot: the page needs its shapes
-                scene_robot = runner.robot_spec
+            if runner.scene_key != scene_key:  # another robot or task: the page needs shapes
+                scene_key = runner.scene_key
                 await ws.send_text(json.dumps(runner.describe()))
             sent = snapshot["seq"]
             await ws.send_text(json.dumps(snapshot, allow_nan=False))
         await asyncio.sleep(poll)
 
 
+def _release(runner: DashboardRunner, hold: PageHold) -> None:
+    """Lift whatever keys and jog button ``hold`` (one page's) keeps down."""
+    if hold.keys:
+        handle_input(runner.inputs, {"type": "key", "release_all": True}, hold)
+    if hold.jog:
+        handle_input(runner.inputs, {"type": "pendant", "op": "release"}, hold)
+
+
 def _handle(
-    runner: DashboardRunner, text: str | bytes, page: PageTouch | None = None
+    runner: DashboardRunner,
+    text: str | bytes,
+    page: PageTouch | None = None,
+    hold: PageHold | None = None,
 ) -> dict | None:
     """Carry out one browser message; returns an error reply or None, never raises (a bad
     message must not drop the page's connection).  ``page`` (None: no bookkeeping) keeps
@@ -369,14 +393,16 @@ def _handle(
     if len(text) > MAX_MESSAGE_BYTES:
         return {"type": "error", "message": "message too long"}
     try:
-        return _carry_out(runner, text, page)
+        return _carry_out(runner, text, page, hold if hold is not None else PageHold())
     except (ValueError, TypeError) as exc:
         return {"type": "error", "message": " ".join(str(exc).split())[:200]}
     except Exception as exc:  # noqa: BLE001 - whatever it was, the page keeps its socket
         return {"type": "error", "message": f"message not handled ({type(exc).__name__})"}
 
 
-def _carry_out(runner: DashboardRunner, text: str, page: PageTouch | None) -> dict | None:
+def _carry_out(
+    runner: DashboardRunner, text: str, page: PageTouch | None, hold: PageHold
+) -> dict | None:
     """One message's effect (see :func:`_handle`); ValueError/TypeError for bad ones."""
     message = loads_json(text, "the message")
     if not isinstance(message, dict):
@@ -392,6 +418,10 @@ def _carry_out(runner: DashboardRunner, text: str, page: PageTouch | None) -> di
                 page.set_down(bool(touches))
     elif kind == "command":
         runner.submit({k: v for k, v in message.items() if k != "type"})
+    elif kind in ("key", "pendant"):
+        handle_input(runner.inputs, message, hold)
+    elif kind == "hold":  # the heartbeat of a page holding a key or jog button
+        pass
     elif kind == "ping":
         t = message.get("t")
         finite = isinstance(t, int | float) and not isinstance(t, bool) and math.isfinite(t)
