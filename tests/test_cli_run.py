@@ -176,3 +176,36 @@ def test_the_dashboard_refuses_bad_options_in_one_line(model_dir) -> None:
         one_line_error(
             invoke("run", "--port", port, "--model", model_dir, "--no-open"), "cannot listen"
         )
+
+
+def test_run_inputs_and_tasks_refuse_bad_combinations_in_one_line(model_dir) -> None:
+    one_line_error(invoke("run", "--input", "pendant"), "panel of the web dashboard")
+    one_line_error(invoke("run", "--input", "mouse"), "--input must be")
+    one_line_error(
+        invoke("run", "--input", "keyboard", "--view", "dashboard"), "--input keyboard reads"
+    )
+    one_line_error(
+        invoke("run", "--headless", "--task", "pour", "--robot", "tm:10.0.0.9", "--model",
+               model_dir),
+        "tasks run on the simulated arm",
+    )  # fmt: skip
+    one_line_error(
+        invoke("run", "--headless", "--task", "juggle", "--model", model_dir), "unknown task"
+    )
+
+
+def test_keyboard_run_on_a_task_in_the_terminal_view(model_dir) -> None:
+    result = invoke(
+        "run", "--input", "keyboard", "--task", "pick_place", "--seconds", "0.5",
+        "--model", model_dir,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert "task pick_place" in result.output and "g: gripper" in result.output
+
+
+def test_headless_run_without_a_skin_on_a_task(model_dir) -> None:
+    result = invoke(
+        "run", "--headless", "--skin", "none:speed=0", "--task", "pour", "--seconds", "1",
+        "--model", model_dir,
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output

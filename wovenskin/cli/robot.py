@@ -27,11 +27,26 @@ from wovenskin.errors import ConfigError
 @robot_errors
 def run(
     skin: str = typer.Option(
-        None, help=SKIN_HELP + " Default: sim:auto=0 with the dashboard, else sim."
+        None,
+        help=SKIN_HELP + " none: no skin (keys only). Default: sim:auto=0 with the dashboard, "
+        "none with --input keyboard, else sim.",
     ),
     robot: str = typer.Option("sim", help=ROBOT_HELP),
     model: Path = MODEL,
-    view: str = typer.Option("dashboard", help="dashboard (web page), terminal or none."),
+    view: str = typer.Option(
+        None,
+        help="dashboard (web page; also 'web'), terminal or none. Default: dashboard; "
+        "terminal with --input keyboard.",
+    ),
+    input_kind: str = typer.Option(
+        "skin",
+        "--input",
+        help="skin, keyboard (terminal view: keys drive the arm) or pendant "
+        "(a panel of the web dashboard).",
+    ),
+    task: str = typer.Option(
+        None, help="Run on a study task's scene: pick_place or pour (simulated arm only)."
+    ),
     headless: bool = typer.Option(
         False, help="No view (same as --view none); replays run as fast as possible."
     ),
@@ -62,13 +77,8 @@ def run(
     from wovenskin.control.trace import TraceWriter
     from wovenskin.runtime.session import open_session
 
-    if headless:
-        view = "none"
-    if view not in ("dashboard", "terminal", "none"):
-        raise ConfigError(f"--view must be dashboard, terminal or none, got {view!r}")
+    view, skin = _view_and_skin(view, skin, input_kind, headless)
     headless = view == "none"
-    if skin is None:
-        skin = "sim:auto=0" if view == "dashboard" else "sim"
     to_stdout = trace == "-"
     out = err_console if to_stdout or headless else console
     if trace == "-" and not headless:
@@ -79,7 +89,7 @@ def run(
         _run_dashboard(
             skin, robot, model, host=host, port=port, token=token, open_browser=open_browser,
             ui_rate=ui_rate, trace=trace, record=record, seconds=seconds, mapping=mapping,
-            poses=poses, overwrite=overwrite,
+            poses=poses, overwrite=overwrite, task=task,
         )  # fmt: skip
         return
     writer = TraceWriter(trace, overwrite=overwrite) if trace else None
@@ -91,7 +101,7 @@ def run(
     try:
         session = open_session(
             skin, robot, model, fast_replay=headless, mapping=mapping, poses=poses,
-            trace=writer, record=record, overwrite=overwrite, on_message=report,
+            trace=writer, record=record, overwrite=overwrite, on_message=report, task=task,
         )  # fmt: skip
     except BaseException:
         if writer is not None:
@@ -105,9 +115,14 @@ def run(
                 session.request_quit("interrupted (Ctrl-C)")
                 result = session.result()
         else:
+            from wovenskin.teleop.keyboard import TerminalKeyboard
             from wovenskin.ui.run_view import run_with_view
 
-            result = run_with_view(session, console, seconds, title=f"wovenskin run  {robot}")
+            if session.task is not None:
+                session.task.reset(0)
+            keyboard = TerminalKeyboard() if input_kind == "keyboard" else None
+            title = f"wovenskin run  {robot}" + (f"  task {task}" if task else "")
+            result = run_with_view(session, console, seconds, title=title, keyboard=keyboard)
     finally:
         session.close()
     out.print(result.summary(), highlight=False, soft_wrap=True)
@@ -115,6 +130,38 @@ def run(
         out.print(f"trace: {writer.lines} lines in {writer.path}", highlight=False)
     if record is not None:
         out.print(f"recording: {record}", highlight=False)
+
+
+INPUTS = ("skin", "keyboard", "pendant")
+
+
+def _view_and_skin(
+    view: str | None, skin: str | None, input_kind: str, headless: bool
+) -> tuple[str, str]:
+    """The view and skin spec ``wovenskin run`` uses; a bad combination is one line."""
+    if input_kind not in INPUTS:
+        raise ConfigError(f"--input must be skin, keyboard or pendant, got {input_kind!r}")
+    if input_kind == "pendant":
+        raise ConfigError(
+            "the teach pendant is a panel of the web dashboard: use --view dashboard (--view web)"
+        )
+    if headless:
+        view = "none"
+    view = "dashboard" if view == "web" else view
+    if view is None:
+        view = "terminal" if input_kind == "keyboard" else "dashboard"
+    if view not in ("dashboard", "terminal", "none"):
+        raise ConfigError(f"--view must be dashboard, terminal or none, got {view!r}")
+    if input_kind == "keyboard" and view != "terminal":
+        raise ConfigError(
+            "--input keyboard reads keys in the terminal view (--view terminal); the web "
+            "dashboard has its own keyboard on its page"
+        )
+    if skin is None:
+        skin = (
+            "none" if input_kind == "keyboard" else ("sim:auto=0" if view == "dashboard" else "sim")
+        )
+    return view, skin
 
 
 def _has_desktop() -> bool:
@@ -131,6 +178,7 @@ def _run_dashboard(
     skin: str, robot: str, model: Path | None, *, host: str, port: int, token: str | None,
     open_browser: bool, ui_rate: float, trace: str | None, record: Path | None,
     seconds: float | None, mapping: Path | None, poses: Path | None, overwrite: bool,
+    task: str | None = None,
 ) -> None:  # fmt: skip
     """``wovenskin run`` with the web dashboard (see :mod:`wovenskin.ui.dashboard`)."""
     import socket
@@ -154,15 +202,16 @@ def _run_dashboard(
         token = new_token()
     first = {"record": record, "trace": TraceWriter(trace, overwrite=overwrite) if trace else None}
 
-    def opener(skin_spec: str, robot_spec: str):
+    def opener(skin_spec: str, robot_spec: str, task=None):
         # The recording and trace given on the command line belong to the first session.
         recording, writer = first.pop("record", None), first.pop("trace", None)
         return open_session(
             skin_spec, robot_spec, model, mapping=mapping, poses=poses, trace=writer,
-            record=recording, overwrite=overwrite,
+            record=recording, overwrite=overwrite, task=task,
         )  # fmt: skip
 
-    runner = DashboardRunner(opener, skin, robot, ui_rate_hz=ui_rate)
+    chosen = {"task": task} if task is not None else {}  # the dashboard's task selector
+    runner = DashboardRunner(opener, skin, robot, ui_rate_hz=ui_rate, **chosen)
 
     def ready(url: str) -> None:
         console.print(f"wovenskin dashboard: [bold]{url}[/bold]  (Ctrl-C quits)")
