@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 
+import pytest
 from typer.testing import CliRunner
 
 from wovenskin.cli.study import study_app
@@ -55,3 +56,48 @@ def test_simulate_then_report(tmp_path):
     assert result.exit_code == 0, result.output
     assert "SYNTHETIC" in result.output and "4 PNGs" in result.output
     assert (tmp_path / "r" / "report.html").exists()
+
+
+def _study(tmp_path):
+    RUN.invoke(study_app, ["init", str(tmp_path)])
+    RUN.invoke(study_app, ["add-participant", str(tmp_path), "P01", "--expertise", "novice"])
+    return str(tmp_path)
+
+
+def test_run_refuses_what_the_study_does_not_hold(tmp_path):
+    folder = _study(tmp_path)
+    base = ["run", folder, "--participant", "P01", "--task", "pour", "--interface"]
+    result = RUN.invoke(study_app, [*base, "pendant"], env=ENV)
+    assert result.exit_code == 2 and "web dashboard" in result.output
+    result = RUN.invoke(study_app, [*base, "mouse"], env=ENV)
+    assert result.exit_code == 2 and "not in the study" in result.output
+    result = RUN.invoke(study_app, ["run", folder, "--participant", "P09", "--task", "pour",
+                                    "--interface", "skin"], env=ENV)  # fmt: skip
+    assert result.exit_code == 2 and "no participant" in result.output
+
+
+def test_run_bounded_by_seconds_leaves_the_trial_incomplete(tmp_path):
+    folder = _study(tmp_path)
+    args = ["run", folder, "--participant", "P01", "--task", "pick_place", "--interface",
+            "keyboard", "--skin", "none:speed=0", "--seconds", "0.5"]  # fmt: skip
+    result = RUN.invoke(study_app, args, env=ENV)
+    assert result.exit_code == 0, result.output
+    assert "0 of 3 trials finished" in result.output
+    trial = tmp_path / "trials" / "P01" / "pick_place-keyboard-1"
+    assert (trial / "trajectory.csv").exists() and not (trial / "trial.json").exists()
+    result = RUN.invoke(study_app, args, env=ENV)
+    assert result.exit_code == 2 and "--overwrite" in result.output
+
+
+@pytest.mark.slow
+def test_run_skin_trials_end_at_the_time_limit(tmp_path):
+    folder = _study(tmp_path)
+    args = ["run", folder, "--participant", "P01", "--task", "pick_place", "--interface",
+            "skin", "--skin", "sim:speed=0,seed=3,idle=0.3", "--trials", "2", "--time-limit",
+            "0.5", "--seconds", "60"]  # fmt: skip
+    result = RUN.invoke(study_app, args, env=ENV)
+    assert result.exit_code == 0, result.output
+    assert "trial 1: timeout" in result.output and "trial 2: timeout" in result.output
+    rows = list(csv.DictReader((tmp_path / "trials.csv").open()))
+    assert [r["outcome"] for r in rows] == ["timeout", "timeout"]
+    assert all(float(r["duration_s"]) == 0.5 and int(r["gesture_commands"]) >= 1 for r in rows)

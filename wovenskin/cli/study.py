@@ -10,7 +10,7 @@ from pathlib import Path
 
 import typer
 
-from wovenskin.cli.app import console, user_errors, warn
+from wovenskin.cli.app import MODEL, SKIN_HELP, console, robot_errors, user_errors, warn
 
 study_app = typer.Typer(
     help="User studies: definitions, counterbalanced plans, trial logs, reports (docs/study.md).",
@@ -115,3 +115,83 @@ def study_simulate(
         f"wrote a SYNTHETIC study to {directory} ({len(study.participants)} participants); "
         f"report it with `wovenskin study report {directory}`"
     )
+
+
+@study_app.command("run")
+@user_errors
+@robot_errors
+def study_run(
+    directory: Path = DIR,
+    participant: str = typer.Option(..., help="The participant's id (in study.toml)."),
+    task: str = typer.Option(..., help="pick_place or pour (one of the study's tasks)."),
+    interface: str = typer.Option(..., help="keyboard or skin (the pendant: the dashboard)."),
+    trials: int = typer.Option(None, min=1, help="Trials (default: the study's per condition)."),
+    first_trial: int = typer.Option(1, min=1, help="Number of the first trial (to go on)."),
+    skin: str = typer.Option(None, help=SKIN_HELP + " Default: none (keyboard), sim (skin)."),
+    model: Path = MODEL,
+    mapping: Path = typer.Option(None, help="Action mapping TOML (skin_registered needs one)."),
+    time_limit: float = typer.Option(
+        None, help="Seconds from the first command (default: the study's)."
+    ),
+    seconds: float = typer.Option(None, help="Stop after this many seconds of session time."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Rerun trials already recorded."),
+) -> None:
+    """Run a participant's trials of one task and interface in the terminal view.
+
+    Each trial resets the scene (seeded by participant, task and trial) and is timed from
+    the first command; it ends on success, the task's failure, the time limit, or the
+    experimenter's key: y success, n give up, x abort (space stops the arm, q quits).
+    """
+    from wovenskin.cli.app import err_console
+    from wovenskin.errors import ConfigError
+    from wovenskin.runtime.session import open_session
+    from wovenskin.study.definition import load_study
+    from wovenskin.study.session import StudyTrials
+    from wovenskin.teleop.keyboard import TerminalKeyboard
+    from wovenskin.ui.run_view import run_with_view, terminal_keys
+
+    study = load_study(directory)
+    person = study.participant(participant)
+    for what, value, known in (
+        ("task", task, study.tasks),
+        ("interface", interface, study.interfaces),
+    ):
+        if value not in known:
+            raise ConfigError(f"--{what} {value!r} is not in the study: {', '.join(known)}")
+    if interface == "pendant":
+        raise ConfigError("the teach pendant is a panel of the web dashboard: run it there")
+    if interface == "skin_registered" and mapping is None:
+        raise ConfigError('skin_registered needs --mapping: a mapping file with frame = "skin"')
+    if seconds is not None and not seconds > 0:
+        raise ConfigError(f"--seconds must be positive, got {seconds}")
+    keyboard = TerminalKeyboard() if interface == "keyboard" else None
+    skin = skin or ("none" if keyboard is not None else "sim")
+    hooks: list = []
+    session = open_session(
+        skin, "sim", model, mapping=mapping, task=task,
+        on_tick=lambda s: hooks[0].on_tick(s) if hooks else None,
+    )  # fmt: skip
+    block = StudyTrials(
+        session, session.task, directory, person.id, person.expertise, interface,
+        trials or study.trials_per_condition, first=first_trial, overwrite=overwrite,
+        time_limit_s=time_limit if time_limit is not None else study.time_limit_s,
+    )  # fmt: skip
+    hooks.append(block)
+    title = f"wovenskin study  {person.id}  {task} / {interface}  (y success, n give up, x abort)"
+    try:
+        with terminal_keys() as read:
+            result = run_with_view(
+                session, console, seconds, title=title, keyboard=keyboard,
+                read_keys=lambda: block.keys(read()),
+            )  # fmt: skip
+    finally:
+        block.close()
+        session.close()
+    console.print(result.summary(), highlight=False, soft_wrap=True)
+    for s in block.summaries:
+        console.print(
+            f"trial {s.trial}: {s.outcome}, {s.duration_s:.1f} s, {s.commands} commands",
+            highlight=False,
+        )
+    if not block.done:
+        err_console.print(f"{len(block.summaries)} of {len(block.numbers)} trials finished")
