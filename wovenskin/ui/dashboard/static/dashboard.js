@@ -3,6 +3,7 @@
 // sends touches and commands. Nothing here decides a command: touches go to the simulated
 // skin's physics on the server and through the same recogniser and safety layer as a real skin.
 import * as THREE from "./vendor/three.min.js";
+import { makeTaskView, setupStudy } from "./study.js";
 
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -64,6 +65,8 @@ function onScene(message) {
   buildPerformButtons(message.gestures);
   buildBars(message.classes);
   arm.build(message.scene, message.workspace);
+  taskView.build(message.task);
+  study.onScene(message);
 }
 
 function onState(state) {
@@ -77,6 +80,8 @@ function onState(state) {
   updateRecognition(state);
   updateControls(state);
   arm.update(state.robot);
+  taskView.update(state.task);
+  study.update(state);
   drawTimeline(state);
   updateMessages(state.messages);
 }
@@ -673,8 +678,10 @@ const arm = (() => {
     requestAnimationFrame(render);
   }
   requestAnimationFrame(render);
-  return { build, update, resizeTexture };
+  return { build, update, resizeTexture, scene, meshes, grid, markDirty: () => { dirty = true; } };
 })();
+const taskView = makeTaskView(THREE, arm, page);
+const study = setupStudy({ $, page, send, command });
 
 sizeSkinCanvas();
 connect();

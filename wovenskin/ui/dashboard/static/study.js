@@ -1,0 +1,215 @@
+// The dashboard's study parts: the task scene in the 3D view, task and interface choice, the
+// keyboard (key-down/key-up sent as they happen), the teach pendant's jog panel, the
+// gripper button and the experimenter's trial controls. The server decides everything:
+// the page only sends what the person did and draws the state it gets back.
+
+// ------------------------------------------------------------------ the task scene (3D)
+export function makeTaskView(THREE, arm, page) {
+  const group = new THREE.Group();
+  arm.scene.add(group);
+  let moving = [];
+  let particles = null; // one mesh of n low-poly spheres: its vertices move each frame
+  let template = null; // one sphere's vertex positions
+
+  function geometryOf(shape) {
+    const s = shape.size;
+    if (shape.type === "mesh") {
+      const g = new THREE.BufferGeometry();
+      g.setAttribute("position", new THREE.Float32BufferAttribute(shape.vertices, 3));
+      g.setIndex(shape.faces);
+      const flat = g.toNonIndexed(); // one normal per face: crisp edges
+      flat.computeVertexNormals();
+      return flat;
+    }
+    if (shape.type === "box") return new THREE.BoxGeometry(2 * s[0], 2 * s[1], 2 * s[2]);
+    if (shape.type === "sphere") return new THREE.SphereGeometry(s[0], 16, 12);
+    const g = shape.type === "capsule"
+      ? new THREE.CapsuleGeometry(s[0], 2 * s[1], 6, 16)
+      : new THREE.CylinderGeometry(s[0], s[0], 2 * s[1], 24);
+    g.rotateX(Math.PI / 2); // three's run along y, MuJoCo's along z
+    return g;
+  }
+  function meshOf(shape) {
+    const [r, g, b, a] = shape.rgba;
+    const material = new THREE.MeshStandardMaterial({ color: new THREE.Color(r, g, b), transparent: a < 1, opacity: a, roughness: 0.7 });
+    const mesh = new THREE.Mesh(geometryOf(shape), material);
+    mesh.name = shape.name;
+    return mesh;
+  }
+  function place(mesh, p) { mesh.position.set(p[0], p[1], p[2]); mesh.quaternion.set(p[4], p[5], p[6], p[3]); }
+
+  function build(description) {
+    while (group.children.length) group.remove(group.children[0]);
+    moving = []; particles = null; template = null;
+    page.task = description ? { name: description.name, particles: 0, moving: 0 } : null;
+    for (const m of arm.meshes) m.visible = m.name !== "skin_patch" && !(description && description.hide.includes(m.name));
+    arm.grid.visible = !description; // the table top lies at z = 0
+    if (!description) return;
+    for (const shape of description.fixed) { const mesh = meshOf(shape); place(mesh, shape.pose); group.add(mesh); }
+    for (const shape of description.moving) { const mesh = meshOf(shape); moving.push(mesh); group.add(mesh); }
+    const n = description.particles.count;
+    if (n) {
+      const sphere = new THREE.SphereGeometry(description.particles.radius, 6, 4);
+      template = sphere.attributes.position.array;
+      const nv = template.length / 3, index = sphere.index.array;
+      const positions = new Float32Array(template.length * n), normals = new Float32Array(template.length * n);
+      const indices = [];
+      for (let k = 0; k < n; k++) {
+        normals.set(sphere.attributes.normal.array, k * template.length);
+        for (const i of index) indices.push(i + k * nv);
+      }
+      const g = new THREE.BufferGeometry();
+      g.setAttribute("position", new THREE.Float32BufferAttribute(positions, 3));
+      g.setAttribute("normal", new THREE.Float32BufferAttribute(normals, 3));
+      g.setIndex(indices);
+      const [r, gg, b] = description.particles.rgba;
+      particles = new THREE.Mesh(g, new THREE.MeshStandardMaterial({ color: new THREE.Color(r, gg, b), roughness: 0.4 }));
+      particles.name = "particles"; particles.frustumCulled = false;
+      group.add(particles);
+    }
+    page.task.moving = moving.length;
+  }
+
+  function update(task) {
+    if (!task || !page.task) return;
+    task.geoms.forEach((p, k) => { if (moving[k]) place(moving[k], p); });
+    if (particles && template) {
+      const out = particles.geometry.attributes.position, array = out.array, centres = task.particles;
+      const per = template.length, n = centres.length / 3;
+      for (let k = 0; k < n; k++) {
+        const x = centres[3 * k], y = centres[3 * k + 1], z = centres[3 * k + 2], base = k * per;
+        for (let i = 0; i < per; i += 3) {
+          array[base + i] = template[i] + x; array[base + i + 1] = template[i + 1] + y; array[base + i + 2] = template[i + 2] + z;
+        }
+      }
+      out.needsUpdate = true;
+      page.task.particles = n;
+    }
+    page.task.state = task.state;
+  }
+  return { build, update };
+}
+
+// ------------------------------------------------------------------ panels and keys
+export function setupStudy({ $, page, send, command }) {
+  const keysDown = new Set();
+  let jogHeld = false;
+  let keyNames = new Set();
+  const typing = () => { const el = document.activeElement; return el && (el.tagName === "TEXTAREA" || (el.tagName === "INPUT" && !["range", "checkbox", "button"].includes(el.type))); };
+  const interfaceIs = (name) => page.state && page.state.teleop && page.state.teleop.interface === name;
+
+  window.addEventListener("keydown", (event) => {
+    const key = event.key.length === 1 ? event.key.toLowerCase() : "";
+    if (!keyNames.has(key) || !interfaceIs("keyboard") || typing() || event.ctrlKey || event.metaKey || event.altKey) return;
+    event.preventDefault();
+    if (event.repeat || keysDown.has(key)) return; // auto-repeat is no new press
+    if (key !== "g") keysDown.add(key);
+    send({ type: "key", key, down: true });
+    if (key === "g") send({ type: "key", key, down: false });
+  });
+  window.addEventListener("keyup", (event) => {
+    const key = event.key.length === 1 ? event.key.toLowerCase() : "";
+    if (!keysDown.delete(key)) return;
+    send({ type: "key", key, down: false });
+  });
+  function releaseAll() {
+    if (keysDown.size) { keysDown.clear(); send({ type: "key", release_all: true }); }
+    if (jogHeld) { jogHeld = false; send({ type: "pendant", op: "release" }); }
+  }
+  window.addEventListener("blur", releaseAll);
+  document.addEventListener("visibilitychange", () => { if (document.hidden) releaseAll(); });
+  setInterval(() => { if (keysDown.size || jogHeld) send({ type: "hold" }); }, 250); // hold-to-run heartbeat
+  page.keysDown = keysDown;
+
+  const pendant = (op, extra = {}) => send({ type: "pendant", op, ...extra });
+  $("task").addEventListener("change", () => command("task", { task: $("task").value }));
+  $("interface").addEventListener("change", () => { releaseAll(); command("interface", { interface: $("interface").value }); });
+  $("gripper").addEventListener("click", () => command("gripper"));
+  $("jog-frame").addEventListener("change", () => pendant("frame", { value: $("jog-frame").value }));
+  $("jog-step").addEventListener("change", () => { const v = $("jog-step").value; pendant("step", { value: v === "off" ? null : Number(v) }); });
+  $("jog-speed").addEventListener("input", () => { $("jog-speed-value").textContent = `${$("jog-speed").value}%`; });
+  $("jog-speed").addEventListener("change", () => pendant("speed", { value: Number($("jog-speed").value) }));
+  $("jog-initial").addEventListener("click", () => pendant("go_to", { pose: "initial" }));
+  $("jog-home").addEventListener("click", () => pendant("go_to", { pose: "home" }));
+  $("jog-gripper").addEventListener("click", () => pendant("gripper"));
+  for (const [id, op] of [["trial-start", "start"], ["trial-success", "success"], ["trial-give-up", "give_up"], ["trial-abort", "abort"]]) {
+    $(id).addEventListener("click", () => command("trial", { op, participant: $("participant").value.trim() }));
+  }
+
+  let axesShown = "";
+  function buildAxes(panel) {
+    const key = `${panel.frame}:${panel.axes.join(",")}`;
+    if (key === axesShown) return;
+    axesShown = key;
+    const box = $("jog-axes");
+    box.innerHTML = "";
+    for (const axis of panel.axes) {
+      for (const sign of [-1, 1]) {
+        const button = document.createElement("button");
+        button.textContent = `${panel.frame === "joint" ? `J${axis}` : axis} ${sign > 0 ? "+" : "−"}`;
+        button.dataset.axis = String(axis); button.dataset.sign = String(sign);
+        button.addEventListener("pointerdown", (event) => {
+          event.preventDefault();
+          button.setPointerCapture(event.pointerId);
+          pendant("press", { axis: panel.frame === "joint" ? Number(axis) : axis, sign });
+          jogHeld = $("jog-step").value === "off";
+        });
+        const up = () => { if (jogHeld) { jogHeld = false; pendant("release"); } };
+        for (const kind of ["pointerup", "pointerleave", "pointercancel", "lostpointercapture"]) button.addEventListener(kind, up);
+        box.appendChild(button);
+      }
+    }
+  }
+
+  function onScene(message) {
+    const fill = (select, values, chosen) => {
+      if (select.dataset.values !== values.join()) {
+        select.innerHTML = values.map((v) => `<option value="${v}">${v.replace("_", " ")}</option>`).join("");
+        select.dataset.values = values.join();
+      }
+      select.value = chosen;
+    };
+    fill($("task"), message.tasks || ["none"], message.task ? message.task.name : "none");
+    fill($("interface"), message.interfaces || ["skin"], $("interface").value || "skin");
+    keyNames = new Set((message.keys || []).map((row) => row.key));
+    $("keymap").innerHTML = (message.keys || []).map((row) => `<span><b>${row.key.toUpperCase()}</b> ${row.action}</span>`).join("");
+    $("study-folder").textContent = message.study ? `study: ${message.study}` : "no study folder (--study DIR)";
+  }
+
+  function update(state) {
+    const teleop = state.teleop;
+    if (!teleop) return;
+    if (document.activeElement !== $("interface")) $("interface").value = teleop.interface;
+    $("commands").textContent = `commands ${teleop.commands} · gripper ${teleop.gripper_closed ? "closed" : "open"}${teleop.held ? ` · ${teleop.held}` : ""}`;
+    $("commands").dataset.count = String(teleop.commands);
+    $("keymap").hidden = teleop.interface !== "keyboard";
+    $("pendant").hidden = teleop.interface !== "pendant";
+    if (teleop.pendant) {
+      const panel = teleop.pendant;
+      if (document.activeElement !== $("jog-frame")) $("jog-frame").value = panel.frame;
+      if (document.activeElement !== $("jog-step")) $("jog-step").value = panel.step_size === null ? "off" : String(panel.step_size);
+      if (document.activeElement !== $("jog-speed")) { $("jog-speed").value = panel.speed_percent; $("jog-speed-value").textContent = `${panel.speed_percent}%`; }
+      buildAxes(panel);
+    }
+    const task = state.task;
+    if (document.activeElement !== $("task")) $("task").value = task ? task.name : "none";
+    const s = task && task.state;
+    $("task-state").textContent = !s ? "" : s.task === "pour"
+      ? `in cup ${s.in_cup} · delivered ${s.delivered} · spilled ${s.spilled} of ${s.total}${s.succeeded ? " · DONE" : ""}`
+      : `seated ${s.seated} of ${s.total}${s.succeeded ? " · DONE" : ""}`;
+    const study = state.study;
+    if (!study) return;
+    for (const id of ["trial-success", "trial-give-up", "trial-abort"]) $(id).disabled = !study.running;
+    $("trial-start").disabled = study.running || !study.folder;
+    if (study.running) {
+      const limit = study.time_limit_s ? ` / ${study.time_limit_s.toFixed(0)} s` : "";
+      $("trial-timer").textContent = `${study.elapsed_s.toFixed(1)} s${limit}${study.started ? "" : " (waits for the first command)"}`;
+      $("trial-status").textContent = `${study.participant} · ${study.task} · ${study.interface} · trial ${study.trial}`;
+    } else {
+      $("trial-timer").textContent = "-";
+      const last = study.last;
+      $("trial-status").textContent = last ? `last: ${last.outcome}, ${last.duration_s} s, ${last.commands} commands` : "";
+    }
+  }
+  return { onScene, update };
+}
