@@ -179,10 +179,14 @@ def test_the_dashboard_refuses_bad_options_in_one_line(model_dir) -> None:
 
 
 def test_run_inputs_and_tasks_refuse_bad_combinations_in_one_line(model_dir) -> None:
-    one_line_error(invoke("run", "--input", "pendant"), "panel of the web dashboard")
-    one_line_error(invoke("run", "--input", "mouse"), "--input must be")
     one_line_error(
-        invoke("run", "--input", "keyboard", "--view", "dashboard"), "--input keyboard reads"
+        invoke("run", "--input", "pendant", "--view", "terminal"), "panel of the web dashboard"
+    )
+    one_line_error(invoke("run", "--input", "mouse"), "--input must be")
+    one_line_error(invoke("run", "--input", "keyboard", "--headless"), "needs a view")
+    one_line_error(
+        invoke("run", "--view", "terminal", "--study", "somewhere", "--model", model_dir),
+        "study panel",
     )
     one_line_error(
         invoke("run", "--headless", "--task", "pour", "--robot", "tm:10.0.0.9", "--model",

@@ -41,8 +41,11 @@ def run(
     input_kind: str = typer.Option(
         "skin",
         "--input",
-        help="skin, keyboard (terminal view: keys drive the arm) or pendant "
-        "(a panel of the web dashboard).",
+        help="skin, keyboard (keys drive the arm: in the terminal view, or on the dashboard's "
+        "page) or pendant (the dashboard's jog panel).",
+    ),
+    study: Path = typer.Option(
+        None, help="A study folder (wovenskin study init): the dashboard's study panel runs trials."
     ),
     task: str = typer.Option(
         None, help="Run on a study task's scene: pick_place or pour (simulated arm only)."
@@ -89,9 +92,11 @@ def run(
         _run_dashboard(
             skin, robot, model, host=host, port=port, token=token, open_browser=open_browser,
             ui_rate=ui_rate, trace=trace, record=record, seconds=seconds, mapping=mapping,
-            poses=poses, overwrite=overwrite, task=task,
+            poses=poses, overwrite=overwrite, task=task, interface=input_kind, study=study,
         )  # fmt: skip
         return
+    if study is not None:
+        raise ConfigError("--study runs trials from the dashboard's study panel: use --view web")
     writer = TraceWriter(trace, overwrite=overwrite) if trace else None
 
     def report(message: str) -> None:
@@ -141,10 +146,6 @@ def _view_and_skin(
     """The view and skin spec ``wovenskin run`` uses; a bad combination is one line."""
     if input_kind not in INPUTS:
         raise ConfigError(f"--input must be skin, keyboard or pendant, got {input_kind!r}")
-    if input_kind == "pendant":
-        raise ConfigError(
-            "the teach pendant is a panel of the web dashboard: use --view dashboard (--view web)"
-        )
     if headless:
         view = "none"
     view = "dashboard" if view == "web" else view
@@ -152,11 +153,12 @@ def _view_and_skin(
         view = "terminal" if input_kind == "keyboard" else "dashboard"
     if view not in ("dashboard", "terminal", "none"):
         raise ConfigError(f"--view must be dashboard, terminal or none, got {view!r}")
-    if input_kind == "keyboard" and view != "terminal":
+    if input_kind == "pendant" and view != "dashboard":
         raise ConfigError(
-            "--input keyboard reads keys in the terminal view (--view terminal); the web "
-            "dashboard has its own keyboard on its page"
+            "the teach pendant is a panel of the web dashboard: use --view dashboard (--view web)"
         )
+    if input_kind == "keyboard" and view == "none":
+        raise ConfigError("--input keyboard needs a view to read keys in (terminal or dashboard)")
     if skin is None:
         skin = (
             "none" if input_kind == "keyboard" else ("sim:auto=0" if view == "dashboard" else "sim")
@@ -178,7 +180,7 @@ def _run_dashboard(
     skin: str, robot: str, model: Path | None, *, host: str, port: int, token: str | None,
     open_browser: bool, ui_rate: float, trace: str | None, record: Path | None,
     seconds: float | None, mapping: Path | None, poses: Path | None, overwrite: bool,
-    task: str | None = None,
+    task: str | None = None, interface: str = "skin", study: Path | None = None,
 ) -> None:  # fmt: skip
     """``wovenskin run`` with the web dashboard (see :mod:`wovenskin.ui.dashboard`)."""
     import socket
@@ -211,7 +213,9 @@ def _run_dashboard(
         )  # fmt: skip
 
     chosen = {"task": task} if task is not None else {}  # the dashboard's task selector
-    runner = DashboardRunner(opener, skin, robot, ui_rate_hz=ui_rate, **chosen)
+    runner = DashboardRunner(
+        opener, skin, robot, ui_rate_hz=ui_rate, interface=interface, study_dir=study, **chosen
+    )
 
     def ready(url: str) -> None:
         console.print(f"wovenskin dashboard: [bold]{url}[/bold]  (Ctrl-C quits)")
