@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -49,9 +50,31 @@ def chain_frames(table: Sequence[DHLink], q: np.ndarray) -> list[np.ndarray]:
     if not np.all(np.isfinite(joints)):
         raise ValueError("joint vector has non-finite values")
     frames = [np.eye(4)]
-    for link, theta in zip(table, joints, strict=True):
-        frames.append(frames[-1] @ dh_transform(link, theta))
+    for row in _row_transforms(table, joints):
+        frames.append(frames[-1] @ row)
     return frames
+
+
+@lru_cache(maxsize=16)
+def _columns(table: tuple[DHLink, ...]) -> np.ndarray:
+    """The table's d, a, alpha and theta offset as four arrays (tables are immutable)."""
+    columns = np.array([(link.d, link.a, link.alpha, link.theta_offset) for link in table]).T
+    columns.setflags(write=False)
+    return columns
+
+
+def _row_transforms(table: Sequence[DHLink], joints: np.ndarray) -> np.ndarray:
+    """Every row's :func:`dh_transform` at once, ``(n, 4, 4)``: the safety layer asks for
+    a Jacobian on every control substep, so the rows are built in one vectorised pass."""
+    d, a, alpha, offset = _columns(tuple(table))
+    ct, st = np.cos(joints + offset), np.sin(joints + offset)
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    rows = np.zeros((len(table), 4, 4))
+    rows[:, 0, 0], rows[:, 0, 1], rows[:, 0, 2], rows[:, 0, 3] = ct, -st * ca, st * sa, a * ct
+    rows[:, 1, 0], rows[:, 1, 1], rows[:, 1, 2], rows[:, 1, 3] = st, ct * ca, -ct * sa, a * st
+    rows[:, 2, 1], rows[:, 2, 2], rows[:, 2, 3] = sa, ca, d
+    rows[:, 3, 3] = 1.0
+    return rows
 
 
 def chain_jacobian(
@@ -61,13 +84,10 @@ def chain_jacobian(
     tool; None: the flange) for a chain of revolute joints: ``[v; w] = J @ dq``."""
     frames = chain_frames(table, q)
     end = frames[-1] if tool is None else frames[-1] @ np.asarray(tool, dtype=float)
-    point = end[:3, 3]
-    result = np.zeros((6, len(table)))
-    for i in range(len(table)):
-        axis = frames[i][:3, 2]
-        result[:3, i] = np.cross(axis, point - frames[i][:3, 3])
-        result[3:, i] = axis
-    return result
+    stacked = np.stack(frames[:-1])  # base <- frame i-1, whose z is joint i's axis
+    axes, origins = stacked[:, :3, 2], stacked[:, :3, 3]
+    linear = np.cross(axes, end[:3, 3] - origins)
+    return np.vstack((linear.T, axes.T))
 
 
 def _quat_wxyz(rotation: np.ndarray) -> np.ndarray:
