@@ -142,6 +142,26 @@ def _wait_for(page, expression: str, timeout_s: float) -> bool:
         return False
 
 
+def _server_state(dashboard) -> dict:
+    """The session's newest state on the server: what the arm does now.  On a loaded
+    machine the page may show a state seconds old (chromium renders WebGL on the CPU and
+    falls behind the socket), so waits on what the session did read it here."""
+    return dashboard.runner.latest() or {}
+
+
+def _server_wait(dashboard, predicate, timeout_s: float) -> bool:
+    started = time.monotonic()
+    while time.monotonic() - started < timeout_s:
+        if predicate(_server_state(dashboard)):
+            return True
+        time.sleep(0.02)
+    return False
+
+
+def _server_command(dashboard) -> str | None:
+    return _server_state(dashboard).get("recognition", {}).get("command")
+
+
 def _save(page, name: str) -> Path:
     SHOTS.mkdir(parents=True, exist_ok=True)
     path = SHOTS / name
@@ -190,7 +210,7 @@ def test_a_drawn_upward_swipe_drives_the_arm_along_its_tool_z(page) -> None:
     assert distance > 0.01, f"the TCP moved only {distance * 1000:.1f} mm under swipe_up"
     assert float(moved @ z_tool) > 0.95 * distance  # along +z of the tool frame
     assert np.allclose(before["tcp"]["z_axis"], end["tcp"]["z_axis"], atol=0.02)  # no rotation
-    assert _wait_for(page, "!window.wovenskin.state.recognition.command", 5.0)  # lift-off ends it
+    assert _wait_for(page, "!window.wovenskin.state.recognition.command", 10.0)  # lift-off ends it
     # What the browser saw: the page rate and the touch -> command -> motion latency.
     rate = page.evaluate(
         "(() => { const s = window.wovenskin.receivedAt; "
@@ -310,32 +330,39 @@ def _centre(page) -> tuple[float, float]:
     return box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
 
 
-def test_a_mouse_hand_of_two_traces_a_clockwise_circle(page) -> None:
+def test_a_mouse_hand_of_two_traces_a_clockwise_circle(page, dashboard) -> None:
     page.select_option("#fingers", "2")
     cx, cy = _centre(page)
     radius = 18.0 * page.locator("#skin").bounding_box()["width"] / 100.0  # 18 mm
-    page.mouse.move(cx + radius, cy)
-    page.mouse.down()
     # The hand keeps circling (0.6 s a turn, by the clock) until the circle is recognised
-    # or 5 s pass: on a loaded machine the page may see few of the mouse's moves, and a
+    # or 4 s pass: on a loaded machine the page may see few of the mouse's moves, and a
     # hand that stops circling is resting, not circling.  The circle's first 150 ms look
     # like a two-finger swipe along its tangent; the execution rules let the circle, being
-    # performed, take over from such a first command (one switch per touch).
-    seen: list[str] = []
-    started = last_poll = time.monotonic()
-    while (elapsed := time.monotonic() - started) < 5.0:
-        angle = 2 * math.pi * elapsed / 0.6  # y grows downward: this turns clockwise
-        page.mouse.move(cx + radius * math.cos(angle), cy + radius * math.sin(angle))
-        if time.monotonic() - last_poll > 0.1:
-            last_poll = time.monotonic()
-            command = _state(page)["recognition"]["command"]
-            if command and (not seen or seen[-1] != command):
-                seen.append(command)
-            if command == "circle_cw_2f":
-                break
-    page.mouse.up()
-    assert "circle_cw_2f" in seen, f"commands seen while circling: {seen}"
-    assert "circle_ccw_2f" not in seen, f"commands seen while circling: {seen}"
+    # performed, take over from such a first command (one switch per touch).  A person who
+    # is not understood lifts and draws again: up to three touches.
+    touches: list[list[str]] = []
+    for _ in range(3):
+        seen: list[str] = []
+        touches.append(seen)
+        page.mouse.move(cx + radius, cy)
+        page.mouse.down()
+        started = last_poll = time.monotonic()
+        while (elapsed := time.monotonic() - started) < 4.0:
+            angle = 2 * math.pi * elapsed / 0.6  # y grows downward: this turns clockwise
+            page.mouse.move(cx + radius * math.cos(angle), cy + radius * math.sin(angle))
+            if time.monotonic() - last_poll > 0.1:
+                last_poll = time.monotonic()
+                command = _server_command(dashboard)
+                if command and (not seen or seen[-1] != command):
+                    seen.append(command)
+                if command == "circle_cw_2f":
+                    break
+        page.mouse.up()
+        if "circle_cw_2f" in seen:
+            break
+        assert _server_wait(dashboard, lambda s: not s["recognition"]["command"], 10.0)
+    assert "circle_cw_2f" in touches[-1], f"commands seen in each touch: {touches}"
+    assert not any("circle_ccw_2f" in seen for seen in touches), f"commands: {touches}"
     assert page.problems == []
 
 
