@@ -462,27 +462,38 @@ def test_a_mouse_can_push_by_pressing_harder(page, how: str) -> None:
     assert page.problems == []
 
 
-def test_a_sparsely_sampled_mouse_swipe_is_one_finger(page) -> None:
+def test_a_sparsely_sampled_mouse_swipe_is_one_finger(page, dashboard) -> None:
     """A busy page delivers a stroke as a few pointer samples (here 6, 60 ms apart): the
-    virtual skin rebuilds the fingertip's path and the swipe stays one-fingered."""
+    virtual skin rebuilds the fingertip's path and the swipe stays one-fingered.  The
+    recogniser may be unsure of one stroke (it then does nothing, which is safe): a person
+    draws again, up to three strokes; no stroke may ever be taken for anything else."""
     box = page.locator("#skin").bounding_box()
     y = box["y"] + box["height"] * 0.5
     x0, x1 = box["x"] + box["width"] * 0.85, box["x"] + box["width"] * 0.2  # 65 mm left
-    page.mouse.move(x0, y)
-    page.mouse.down()
-    commands, tops = set(), []
-    for k in range(1, 7):
-        time.sleep(0.06)
-        page.mouse.move(x0 + (x1 - x0) * k / 6, y)
-    started = time.monotonic()
-    while time.monotonic() - started < 2.0:  # resting: collect every command shown
-        recognition = _state(page)["recognition"]
-        if recognition["command"]:
-            commands.add(recognition["command"])
-        tops.append((recognition["top"][0], recognition["unsure"]))
-        time.sleep(0.03)
-    page.mouse.up()
-    assert commands == {"swipe_left"}, f"commands {commands}, recogniser {tops[::4]}"
+    strokes: list[tuple[set, list]] = []
+    for _ in range(3):
+        commands, tops = set(), []
+        strokes.append((commands, tops))
+        page.mouse.move(x0, y)
+        page.mouse.down()
+        for k in range(1, 7):
+            time.sleep(0.06)
+            page.mouse.move(x0 + (x1 - x0) * k / 6, y)
+        started = time.monotonic()
+        while time.monotonic() - started < 2.0:  # resting: collect every command shown
+            recognition = _server_state(dashboard).get("recognition", {})
+            if recognition.get("command"):
+                commands.add(recognition["command"])
+            if recognition:
+                tops.append((recognition["top"][0], recognition["unsure"]))
+            time.sleep(0.03)
+        page.mouse.up()
+        if commands:
+            break
+        assert _server_wait(dashboard, lambda s: not s["recognition"]["command"], 10.0)
+    report = [(sorted(c), t[::8]) for c, t in strokes]
+    assert strokes[-1][0] == {"swipe_left"}, f"strokes: {report}"
+    assert all(c <= {"swipe_left"} for c, _ in strokes), f"strokes: {report}"
     assert page.problems == []
 
 
