@@ -435,30 +435,43 @@ def test_at_1440x900_the_person_buttons_are_in_view_and_idle_says_no_command(pag
 
 
 @pytest.mark.parametrize("how", ["shift", "wheel"])
-def test_a_mouse_can_push_by_pressing_harder(page, how: str) -> None:
+def test_a_mouse_can_push_by_pressing_harder(page, dashboard, how: str) -> None:
     """A mouse has no pressure: held still, Shift or the wheel (one finger) presses harder,
-    ramped as people perform `push` (0.15-0.4 s)."""
+    ramped as people perform `push` (0.15-0.4 s).  A loaded page can stretch the ramp past
+    what a push looks like (the recogniser then does nothing, which is safe): the person
+    presses again, up to three times; a press may never be taken for anything else."""
     cx, cy = _centre(page)
-    page.mouse.move(cx, cy)
-    page.mouse.down()
-    time.sleep(0.3)
-    if how == "shift":
-        page.keyboard.down("Shift")
-    else:
-        for _ in range(5):  # 5 notches up: 0.35 -> 1.4
-            page.mouse.wheel(0, -100)
-            time.sleep(0.03)
-    try:
-        recognised = _wait_for(page, "window.wovenskin.state.recognition.command", 3.0)
-        recognition = _state(page)["recognition"]
-        command = recognition["command"]
-        assert _wait_for(page, "window.wovenskin.mousePressure > 1.3", 2.0)  # ramped up
-    finally:
+    presses: list[tuple[set, list]] = []
+    for _ in range(3):
+        commands: set = set()
+        presses.append((commands, []))
+        page.mouse.move(cx, cy)
+        page.mouse.down()
+        time.sleep(0.3)
         if how == "shift":
-            page.keyboard.up("Shift")
-        page.mouse.up()
-    samples = page.evaluate("window.wovenskin.pressSamples")
-    assert recognised and command == "push", f"command {command!r}, {recognition}, {samples}"
+            page.keyboard.down("Shift")
+        else:
+            for _ in range(5):  # 5 notches up: 0.35 -> 1.4
+                page.mouse.wheel(0, -100)
+                time.sleep(0.03)
+        try:
+            started = time.monotonic()
+            while time.monotonic() - started < 3.0 and not commands:
+                command = _server_command(dashboard)
+                if command:
+                    commands.add(command)
+                time.sleep(0.02)
+            assert _wait_for(page, "window.wovenskin.mousePressure > 1.3", 2.0)  # ramped up
+            presses[-1][1].extend(page.evaluate("window.wovenskin.pressSamples"))
+        finally:
+            if how == "shift":
+                page.keyboard.up("Shift")
+            page.mouse.up()
+        if commands:
+            break
+        assert _server_wait(dashboard, lambda s: not s["recognition"]["command"], 10.0)
+    assert presses[-1][0] == {"push"}, f"presses (commands, pressure samples): {presses}"
+    assert all(c <= {"push"} for c, _ in presses), f"presses: {presses}"
     assert page.problems == []
 
 
