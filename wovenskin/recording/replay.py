@@ -26,11 +26,10 @@ from wovenskin.recording.records import LABEL_KIND_TRIAL
 from wovenskin.recording.untrusted import FormatError
 from wovenskin.settings import from_dict
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
+from wovenskin.skin.source import DevicelessSource
 
 FAST_BATCH = 256
 """Most frames one :meth:`ReplaySource.poll` returns at ``speed=0``."""
-
-_COMMANDS = ("start", "stop", "recalibrate")
 
 
 @dataclass(frozen=True)
@@ -43,7 +42,7 @@ class ReplayOptions:
     start_s: float = 0.0
 
 
-class ReplaySource:
+class ReplaySource(DevicelessSource):
     """Plays a recorded file as if a skin were streaming it (see the module docstring)."""
 
     def __init__(
@@ -130,18 +129,6 @@ class ReplaySource:
         if not items and self._finished:
             time.sleep(max(deadline - now, 0.0))
         return items
-
-    def stats(self) -> SourceStats:
-        return self._stats.copy()
-
-    def send_command(self, command: str) -> None:
-        """Replays have no device: known commands are accepted and ignored."""
-        if command not in _COMMANDS:
-            raise ConfigError(f"unknown command {command!r}; known: {', '.join(_COMMANDS)}")
-
-    def close(self) -> None:
-        self._closed = True
-        self._stats.connected = False
 
     # -- internals
 

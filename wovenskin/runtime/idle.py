@@ -23,10 +23,10 @@ from wovenskin.errors import ConfigError
 from wovenskin.settings import from_dict
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ
+from wovenskin.skin.source import DevicelessSource
 
 FAST_BATCH = 10
 """Most frames one :meth:`IdleSkinSource.poll` returns at ``speed=0``."""
-_COMMANDS = ("start", "stop", "recalibrate")
 
 
 @dataclass(frozen=True)
@@ -43,7 +43,7 @@ class IdleOptions:
     noise: float = 0.002
 
 
-class IdleSkinSource:
+class IdleSkinSource(DevicelessSource):
     """A skin nobody touches: constant readings paced to the wall clock (module docstring)."""
 
     def __init__(
@@ -123,18 +123,6 @@ class IdleSkinSource:
         for _ in range(due):
             items.append(self._frame(now))
         return items
-
-    def stats(self) -> SourceStats:
-        return self._stats.copy()
-
-    def send_command(self, command: str) -> None:
-        """No device: known commands are accepted and ignored."""
-        if command not in _COMMANDS:
-            raise ConfigError(f"unknown command {command!r}; known: {', '.join(_COMMANDS)}")
-
-    def close(self) -> None:
-        self._closed = True
-        self._stats.connected = False
 
     # -- internals
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Protocol, runtime_checkable
 
+from wovenskin.errors import ConfigError
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 
 
@@ -32,3 +33,28 @@ class SkinSource(Protocol):
 
     def close(self) -> None:
         """Stop streaming and release the device; safe to call twice."""
+
+
+SOURCE_COMMANDS = ("start", "stop", "recalibrate")
+
+
+class DevicelessSource:
+    """What every source without a device shares (a replayed file, the idle clock): the
+    stats snapshot, device commands accepted and ignored, and closing.  A subclass sets
+    ``self._stats`` (a :class:`SourceStats`) and ``self._closed``."""
+
+    _stats: SourceStats
+    _closed: bool
+
+    def stats(self) -> SourceStats:
+        return self._stats.copy()
+
+    def send_command(self, command: str) -> None:
+        """No device: known commands are accepted and ignored."""
+        if command not in SOURCE_COMMANDS:
+            known = ", ".join(SOURCE_COMMANDS)
+            raise ConfigError(f"unknown command {command!r}; known: {known}")
+
+    def close(self) -> None:
+        self._closed = True
+        self._stats.connected = False
