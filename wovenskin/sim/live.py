@@ -227,8 +227,10 @@ class SimulatedSkinSource:
         previous sample's.  Fingertips missing from ``touches`` lift off; new ones land.
 
         ``client_t`` (seconds on the sender's clock, e.g. a browser event's timestamp)
-        keeps the sender's timing: samples are played :data:`TOUCH_JITTER_S` behind the
-        first sample of a touch, at their own spacing, however bunched they arrive, and a
+        keeps the sender's timing: samples are played a play-out delay behind the first
+        sample of a touch (:data:`TOUCH_JITTER_S`, adapted to how late the sender's samples
+        have been arriving: see :class:`~wovenskin.sim.live_touches.OutsideTouches`), at
+        their own spacing, however bunched they arrive, and a
         fingertip slides in a straight line from one sample to the next.  A sample later
         than that delays the rest of the touch rather than making the finger jump; one
         timed more than :data:`MAX_TOUCH_LEAD_S` ahead (the sender's clock jumped) plays

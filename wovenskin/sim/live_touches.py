@@ -21,7 +21,9 @@ _TOUCH_RAMP_S = 0.02  # an outside fingertip reaches its force (or lifts) over t
 MAX_TOUCH_FORCE_N = 10.0
 MAX_TOUCHES = 10
 _HOVER_TAIL_TAUS = 4.0  # a lifted outside fingertip is sensed for this many hover constants
-TOUCH_JITTER_S = 0.03  # timestamped outside touches play this far behind their first sample
+TOUCH_JITTER_S = 0.03  # timestamped outside touches play at least this far behind their first
+MAX_TOUCH_JITTER_S = 0.3  # sample, and after late samples at most this far (see OutsideTouches)
+TOUCH_JITTER_MEMORY_S = 30.0  # a late sample's extra delay fades over this much stream time
 MAX_TOUCH_LEAD_S = 2.0  # a sample timed further ahead than this re-anchors the sender's clock
 MAX_TOUCH_SEGMENT_S = 0.25  # a fingertip slides between sparse samples over at most this long
 _TOUCH_MOVED_MM = 0.2  # a sample this far from where a fingertip waits moves it
@@ -107,7 +109,15 @@ def checked_touches(touches: dict[int, Fingertip], client_t: float | None) -> di
 
 class OutsideTouches:
     """The outside fingertips of one simulated skin: queued samples and the fingertips on
-    the skin.  The caller (the source) holds its lock around every call."""
+    the skin.  The caller (the source) holds its lock around every call.
+
+    The play-out delay is adaptive, as in a voice-over-IP jitter buffer: a touch starts
+    :attr:`jitter_s` behind its first sample; a sample that arrives later than its turn
+    delays the rest of that touch (no jump) and raises :attr:`jitter_s` by its lateness
+    (up to :data:`MAX_TOUCH_JITTER_S`), so the next touches from a sender that stalls (a
+    busy page held up 100-400 ms) play intact rather than broken into pieces; the extra
+    delay fades over :data:`TOUCH_JITTER_MEMORY_S` of stream time once the sender keeps
+    time again.  Delays change only between touches, never inside one."""
 
     def __init__(self, fs: float, hover_tau_s: float) -> None:
         self.fs = float(fs)
@@ -118,6 +128,9 @@ class OutsideTouches:
         self._client_t: float | None = None  # sender's time of the newest sample
         self._still = False  # the newest sample repeated the one before (a rest)
         self._trail: dict[int, list[tuple[float, float]]] = {}  # last 2 positions each
+        self.jitter_s = TOUCH_JITTER_S  # the play-out delay a new touch starts with
+        self._jitter_at = 0.0  # stream time when jitter_s was last raised
+        self._touch_delay = TOUCH_JITTER_S  # the touch under way plays this far behind
 
     @property
     def active(self) -> bool:
@@ -133,9 +146,11 @@ class OutsideTouches:
         else:
             idle = not self.fingers and not self.timeline
             if self._offset is None or idle:  # a new touch: set the delay
-                self._offset = head + TOUCH_JITTER_S - client_t
+                self._touch_delay = self._playout_delay(head)
+                self._offset = head + self._touch_delay - client_t
             t = client_t + self._offset
             if t < head:  # later than the buffer allows: delay the rest of the touch
+                self._raise_jitter(head - t, head)
                 self._offset += head - t
                 t = head
             elif t > max(head, last) + MAX_TOUCH_LEAD_S:  # the sender's clock jumped ahead:
@@ -156,6 +171,22 @@ class OutsideTouches:
             self.timeline.extend(self._curve(previous, capped, max(start, head), t))
         self._follow_trail(capped)
         self.timeline.append(_TouchSample(t, capped))
+
+    def _playout_delay(self, head: float) -> float:
+        """The delay a touch starting at stream time ``head`` plays behind its first sample:
+        :attr:`jitter_s`, its excess over :data:`TOUCH_JITTER_S` faded since it was raised."""
+        excess = self.jitter_s - TOUCH_JITTER_S
+        fade = np.exp(-max(0.0, head - self._jitter_at) / TOUCH_JITTER_MEMORY_S)
+        self.jitter_s = TOUCH_JITTER_S + excess * float(fade)
+        self._jitter_at = head
+        return self.jitter_s
+
+    def _raise_jitter(self, lateness: float, head: float) -> None:
+        """A sample came ``lateness`` seconds after its turn: the touch under way plays that
+        much later, and so do the next touches (at most :data:`MAX_TOUCH_JITTER_S`)."""
+        self._touch_delay += lateness
+        self.jitter_s = min(MAX_TOUCH_JITTER_S, max(self.jitter_s, self._touch_delay))
+        self._jitter_at = head
 
     def _stretch_starved(
         self, touches: dict[int, Fingertip], client_t: float, t: float, head: float

@@ -211,18 +211,21 @@ function pressureOf(event, current) { // the device's pressure where it reports 
   return current ?? Number($("pressure").value);
 }
 
-// A mouse cannot press harder by itself: while it presses, the wheel (one finger) or the
-// Shift key (any hand) sets a firmer pressure, which the page ramps toward at PRESS_RATE
-// (a firm press from the slider's 0.35 takes ~0.25 s: how people perform `push`). Releasing
-// Shift, or the wheel the other way, eases it back.
-const PRESS_RATE = 4; // pressure units per second: 0.35 -> 1.4 in 0.26 s
+// A mouse cannot press harder by itself: while it presses, Shift (any hand) or the wheel
+// rolled up (one finger) presses firmly, ramping at PRESS_RATE (from the slider's 0.35 to a
+// firm 1.4 in ~0.26 s: how people perform `push`). Releasing Shift, or the wheel rolled
+// down, eases back to the slider's pressure. The ramp is a function of the page's clock:
+// when a busy page ticks late, the ticks it missed are filled in at RAMP_STEP_MS spacing, so
+// the server receives the ramp people make, not the page's hiccups.
+const PRESS_RATE = 4; // pressure units per second
 const PRESS_MAX = 1.4; // a firm press: 4.1 N, beyond the slider's 1 (3 N), as people push
+const RAMP_STEP_MS = 10;
 let pressTarget = null; // null: the slider's pressure
 let shiftPressing = false;
 function mousePointer() { for (const p of pointers.values()) if (p.mouse) return p; return null; }
 function pressMouse(target) { pressTarget = target === null ? null : Math.max(0.05, Math.min(PRESS_MAX, target)); }
-let pressTick = null; // when the ramp last stepped (ms): a busy page ticks far less often
-setInterval(() => { // ramp a pressing mouse's pressure toward its target by the time elapsed
+let pressTick = null; // the page time (ms) up to which the ramp has been sent
+setInterval(() => { // ramp a pressing mouse's pressure toward its target, on the page's clock
   const p = mousePointer();
   const now = performance.now();
   const last = pressTick;
@@ -230,11 +233,16 @@ setInterval(() => { // ramp a pressing mouse's pressure toward its target by the
   if (!p || last === null) return;
   const target = shiftPressing ? PRESS_MAX : (pressTarget ?? Number($("pressure").value));
   if (Math.abs(p.pressure - target) < 1e-3) return;
-  const step = PRESS_RATE * Math.min(0.25, (now - last) / 1000);
-  p.pressure = p.pressure + Math.max(-step, Math.min(step, target - p.pressure));
+  const samples = [];
+  for (let t = Math.min(now, last + RAMP_STEP_MS); ; t = Math.min(now, t + RAMP_STEP_MS)) {
+    const step = PRESS_RATE * RAMP_STEP_MS / 1000;
+    p.pressure = p.pressure + Math.max(-step, Math.min(step, target - p.pressure));
+    page.pressSamples = [...(page.pressSamples || []).slice(-80), [Math.round(t), Number(p.pressure.toFixed(2))]];
+    samples.push({ t: t / 1000, touches: touchList() });
+    if (t >= now || Math.abs(p.pressure - target) < 1e-3) break;
+  }
   page.mousePressure = p.pressure;
-  page.pressSamples = [...(page.pressSamples || []).slice(-40), [Math.round(now), Number(p.pressure.toFixed(2))]];
-  sendTouches([{ t: now / 1000, touches: touchList() }]);
+  sendTouches(samples.slice(-64));
 }, 16);
 window.addEventListener("keydown", (event) => { if (event.key === "Shift") shiftPressing = true; });
 window.addEventListener("keyup", (event) => { if (event.key === "Shift") shiftPressing = false; });
@@ -319,11 +327,11 @@ window.addEventListener("blur", liftAll);
 document.addEventListener("visibilitychange", () => { if (document.hidden) liftAll(); });
 skinCanvas.addEventListener("wheel", (event) => { // hovering: spread the hand; pressing: pinch
   const fingers = Number($("fingers").value);
-  if (fingers === 1) { // one finger pressing: the wheel presses harder (up) or lighter (down)
+  if (fingers === 1) { // one finger pressing: the wheel up presses firmly, down eases back
     const p = mousePointer();
     if (!p) return;
     event.preventDefault();
-    pressMouse((pressTarget ?? p.pressure) + (event.deltaY < 0 ? 0.25 : -0.25));
+    pressMouse(event.deltaY < 0 ? PRESS_MAX : null);
     return;
   }
   event.preventDefault();

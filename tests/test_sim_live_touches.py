@@ -1,0 +1,60 @@
+"""Tests of the outside fingertips' timeline (wovenskin.sim.live_touches): the adaptive
+play-out delay, checked on stream times alone (no threads, no clocks)."""
+
+from __future__ import annotations
+
+import pytest
+
+from wovenskin.sim.live_touches import (
+    MAX_TOUCH_JITTER_S,
+    TOUCH_JITTER_MEMORY_S,
+    TOUCH_JITTER_S,
+    Fingertip,
+    OutsideTouches,
+)
+
+FS = 200.0
+
+
+def _touch(touches: OutsideTouches, head: float, client_t0: float, late_s: float = 0.0) -> float:
+    """One 0.2 s press at the sender's ``client_t0`` whose second half arrives ``late_s`` after
+    its turn; renders it out and returns the stream time its first sample was given."""
+    tip = Fingertip(50.0, 50.0, 1.5)
+    touches.add({1: tip}, client_t0, head)
+    first = touches.timeline[0].t
+    touches.add({1: tip}, client_t0 + 0.1, first + 0.1 + late_s)  # arrives late_s late
+    touches.add({}, client_t0 + 0.2, first + 0.2 + late_s)
+    frames = int(round((touches.timeline[-1].t + 1.0) * FS))
+    start = int(round(head * FS))
+    touches.tracks(start, frames - start)  # play it all out: the fingertip lifts and goes
+    assert not touches.active
+    return first
+
+
+def test_a_touch_starts_the_base_delay_behind_its_first_sample():
+    touches = OutsideTouches(FS, hover_tau_s=0.01)
+    first = _touch(touches, head=1.0, client_t0=500.0)
+    assert first == pytest.approx(1.0 + TOUCH_JITTER_S)
+
+
+def test_a_late_sample_makes_the_next_touch_wait_longer():
+    touches = OutsideTouches(FS, hover_tau_s=0.01)
+    _touch(touches, head=1.0, client_t0=500.0, late_s=0.2)
+    first = _touch(touches, head=3.0, client_t0=502.0)
+    delay = first - 3.0  # 0.2 s more, faded a little over the ~1.7 s since it was late
+    assert TOUCH_JITTER_S + 0.18 < delay <= TOUCH_JITTER_S + 0.2
+
+
+def test_the_extra_delay_fades_once_the_sender_keeps_time():
+    touches = OutsideTouches(FS, hover_tau_s=0.01)
+    _touch(touches, head=1.0, client_t0=500.0, late_s=0.2)
+    first = _touch(touches, head=1.0 + 5 * TOUCH_JITTER_MEMORY_S, client_t0=900.0)
+    assert first - (1.0 + 5 * TOUCH_JITTER_MEMORY_S) < TOUCH_JITTER_S + 0.2 * 0.01
+
+
+def test_the_delay_never_grows_past_its_cap():
+    touches = OutsideTouches(FS, hover_tau_s=0.01)
+    _touch(touches, head=1.0, client_t0=500.0, late_s=5.0)
+    assert touches.jitter_s == pytest.approx(MAX_TOUCH_JITTER_S)
+    first = _touch(touches, head=20.0, client_t0=600.0)
+    assert first - 20.0 <= MAX_TOUCH_JITTER_S + 1e-9
