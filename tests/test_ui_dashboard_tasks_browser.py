@@ -17,6 +17,7 @@ from test_ui_dashboard_browser import _save, _wait_for, browser  # noqa: F401 - 
 
 from wovenskin.runtime.session import open_session
 from wovenskin.study.definition import add_participant, init_study
+from wovenskin.study.questionnaires import read_questionnaires
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.server import BackgroundServer
 
@@ -167,4 +168,37 @@ def test_the_pour_scene_draws_its_particles(page) -> None:
     counted = "window.wovenskin.task.state && window.wovenskin.task.state.total === 100"
     assert _wait_for(page, counted, 10)
     _save(page, "dashboard-pour.png")
+    assert page.problems == []
+
+
+def test_a_questionnaire_answered_in_the_page_is_scored_into_the_study(page, study_dir) -> None:
+    _choose(page, "keyboard")
+    page.fill("#participant", "P01")
+    assert _wait_for(page, "!document.getElementById('q-open').hidden", 10)
+    page.click("#q-open")
+    assert page.locator("#q-tlx input[type=range]").count() == 6
+    assert page.locator("#q-sus input[type=radio]").count() == 50
+    for key, value in {"mental": 80, "physical": 20, "temporal": 45, "performance": 10,
+                       "effort": 60, "frustration": 5}.items():  # fmt: skip
+        page.locator(f"#q-tlx-{key}").fill(str(value))
+    for item in range(1, 10):  # one statement left unanswered: the page asks for it
+        page.check(f'input[name="q-sus-{item}"][value="{4 if item % 2 else 2}"]')
+    page.click("#q-submit")
+    assert "every SUS statement" in page.text_content("#q-prompt")
+    page.check('input[name="q-sus-10"][value="2"]')
+    page.click("#q-submit")
+    assert _wait_for(page, "document.getElementById('questionnaire').hidden", 10)
+    path = study_dir / "questionnaires.csv"
+    deadline = time.monotonic() + 15
+    while not path.exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    rows, warnings = read_questionnaires(study_dir)
+    assert warnings == [] and len(rows) == 1
+    row = rows[0]
+    assert (row.participant, row.interface, row.task) == ("P01", "keyboard", "pick_place")
+    assert row.tlx == (80, 20, 45, 10, 60, 5) and row.tlx_raw == pytest.approx(220 / 6)
+    assert row.sus_score == pytest.approx(75.0)  # odd 4 -> 3 each, even 2 -> 3 each: 30 x 2.5
+    said = "[...document.querySelectorAll('#messages li')].some((li) =>"
+    assert _wait_for(page, f"{said} li.textContent.includes('questionnaire of P01'))", 10)
+    _save(page, "dashboard-questionnaire.png")
     assert page.problems == []

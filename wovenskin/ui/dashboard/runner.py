@@ -37,6 +37,7 @@ from wovenskin.signal.live_skin import RateMeter
 from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.ports import list_ports
 from wovenskin.tasks import TASKS, Task, make_task
+from wovenskin.ui.dashboard.questionnaire import forms, record_answers
 from wovenskin.ui.dashboard.scene import ArmScene, TaskScene
 from wovenskin.ui.dashboard.snapshot import Timeline, TimelineEntry, build_snapshot
 from wovenskin.ui.dashboard.teleop import INTERFACES, PageInputs, check_interface
@@ -62,6 +63,7 @@ COMMANDS = (
     "interface",
     "gripper",
     "trial",
+    "questionnaire",
 )
 TASK_STATE_PERIOD_S = 0.2  # the task's measures in the page: 5 per second (pour: 1 ms each)
 DEFAULT_SIM_LOOKAHEAD = "0.03"  # s of frames the simulated skin renders ahead (touch latency)
@@ -177,6 +179,7 @@ class DashboardRunner:
             "interfaces": list(INTERFACES),
             "keys": self.inputs.key_map(self.session) if self.session is not None else [],
             "study": None if self.study.study_dir is None else str(self.study.study_dir),
+            "questionnaires": forms(self.study.study_dir),
         }
 
     @property
@@ -414,6 +417,8 @@ class DashboardRunner:
             self.inputs.gripper(session)
         elif name == "trial":
             self._trial(session, str(command.get("op")), command.get("participant"))
+        elif name == "questionnaire":
+            session.state.messages.append(record_answers(self.study.study_dir, command))
 
     def _trial(self, session: ControlSession, op: str, participant: object) -> None:
         t = float(session.now)

@@ -211,5 +211,59 @@ export function setupStudy({ $, page, send, command }) {
       $("trial-status").textContent = last ? `last: ${last.outcome}, ${last.duration_s} s, ${last.commands} commands` : "";
     }
   }
-  return { onScene, update };
+  // ---------------------------------------------------------------- questionnaires
+  // After a condition the participant answers the study's questionnaires (NASA-TLX raw,
+  // SUS) here; the server checks and scores them into questionnaires.csv.
+  let forms = {};
+  let about = null; // {participant, task, interface} the answers are about
+  function buildForms(next) {
+    if (JSON.stringify(next) === JSON.stringify(forms)) return;
+    forms = next || {};
+    $("q-tlx").innerHTML = (forms.nasa_tlx || []).map((item) =>
+      `<div class="item"><b>${item.label}</b> <span class="mono" id="q-tlx-${item.key}-value">50</span>` +
+      `<p>${item.question}</p><input type="range" id="q-tlx-${item.key}" min="0" max="100" step="5" value="50"></div>`).join("");
+    $("q-sus").innerHTML = (forms.sus || []).map((text, i) =>
+      `<div class="item"><p>${i + 1}. ${text}</p><div class="likert">strongly disagree` +
+      [1, 2, 3, 4, 5].map((v) => `<label><input type="radio" name="q-sus-${i + 1}" value="${v}">${v}</label>`).join("") +
+      ` strongly agree</div></div>`).join("");
+    for (const item of forms.nasa_tlx || []) {
+      $(`q-tlx-${item.key}`).addEventListener("input", (e) => { $(`q-tlx-${item.key}-value`).textContent = e.target.value; });
+    }
+    $("q-open").hidden = !forms.nasa_tlx && !forms.sus;
+  }
+  function openForm() {
+    const participant = $("participant").value.trim();
+    about = { participant, task: $("task").value === "none" ? "" : $("task").value, interface: $("interface").value };
+    $("q-about").textContent = `${participant || "(no participant)"} · ${about.interface}${about.task ? ` · ${about.task}` : ""}`;
+    $("questionnaire").hidden = false;
+    $("q-prompt").textContent = "";
+  }
+  $("q-open").addEventListener("click", openForm);
+  $("q-cancel").addEventListener("click", () => { $("questionnaire").hidden = true; });
+  $("questionnaire").addEventListener("submit", (event) => {
+    event.preventDefault();
+    const tlx = forms.nasa_tlx ? forms.nasa_tlx.map((item) => Number($(`q-tlx-${item.key}`).value)) : null;
+    let sus = null;
+    if (forms.sus) {
+      sus = forms.sus.map((_, i) => { const c = document.querySelector(`input[name="q-sus-${i + 1}"]:checked`); return c ? Number(c.value) : null; });
+      if (sus.includes(null)) { $("q-prompt").textContent = "answer every SUS statement"; return; }
+    }
+    command("questionnaire", { ...about, tlx, sus });
+    $("questionnaire").hidden = true;
+    $("questionnaire").reset();
+    for (const item of forms.nasa_tlx || []) $(`q-tlx-${item.key}-value`).textContent = "50";
+  });
+  let lastTrial = null;
+  function promptAfterTrial(study) { // a trial ended: remind the experimenter of the questionnaire
+    const key = study.last ? study.last.folder : null;
+    if (key && key !== lastTrial && !$("q-open").hidden) $("q-prompt").textContent = "after the condition's last trial: questionnaire";
+    lastTrial = key;
+  }
+
+  const baseScene = onScene;
+  const baseUpdate = update;
+  return {
+    onScene(message) { baseScene(message); buildForms(message.questionnaires); },
+    update(state) { baseUpdate(state); if (state.study) promptAfterTrial(state.study); },
+  };
 }
