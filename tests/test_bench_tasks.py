@@ -13,7 +13,7 @@ def test_short_run_reports_the_three_factors():
     assert result.physics_rtf > 0.0 and result.control_rtf > 0.0 and result.full_rtf > 0.0
     assert result.task == "pick_place" and result.contacts >= 1
     json.dumps(result.to_dict())
-    assert result.table().row_count == 4
+    assert result.table().row_count == 5 and result.resting_rtf > 0.0
 
 
 def test_the_skin_feed_runs_the_recogniser_on_every_frame_it_is_given():

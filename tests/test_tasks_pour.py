@@ -25,6 +25,22 @@ def test_particles_start_in_the_cup(task):
     json.dumps(task.to_dict())
 
 
+def test_a_resting_cup_sleeps_and_the_arm_stays_awake(task):
+    """A cup of particles at rest costs little (MuJoCo's sleeping islands); the arm, which
+    is moved every step, never sleeps."""
+    task.reset(2)
+    physics = task.physics
+    q = physics.data.qpos[physics.arm_qpos].copy()
+    physics.advance(q, q, 1.0)
+    model, data = physics.model, physics.data
+    arm_tree = model.body_treeid[model.body("link1").id]
+    assert data.tree_awake[arm_tree] == 1
+    cup_tree = model.body_treeid[model.body("cup").id]
+    assert data.tree_awake[cup_tree] == 0
+    assert int(np.sum(data.tree_awake)) <= 5  # the arm, and perhaps a few still settling
+    assert task.state().in_cup == N_PARTICLES
+
+
 def test_particle_layout_fits_in_the_cup():
     layout = particle_layout(np.random.default_rng(0))
     assert layout.shape == (N_PARTICLES, 3)

@@ -3,13 +3,14 @@
 ``wovenskin bench tasks [--task pour]`` resets the scene and measures, on this machine's
 wall clock:
 
-- **physics alone**: the scene stepped with the arm standing still (the particles resting
-  in the cup), and
+- **physics alone**: the scene stepped with the arm standing still, every object kept
+  awake (MuJoCo's sleeping off: the cost while the particles move, as in a pour: the worst
+  case), and again as the study runs it, resting objects asleep,
 - **physics + arm control**: the control loop's share beside it, as the study runs it:
   every ``tick`` (20 ms) a twist (a horizontal circle of the TCP at 0.1 m/s) goes through
   :class:`~wovenskin.control.safety.SafetyLayer` (the task's workspace box), its watchdogs
   are fed and checked, and the :class:`~wovenskin.robots.sim.robot.SimRobot` advances the
-  IK (250 Hz) and the physics (500 Hz) by one tick, and
+  IK (200 Hz) and the physics (500 Hz) by one tick, every object awake, and
 - **physics + arm control + recogniser**: the same loop, and every tick the skin frames
   of that tick (200 Hz: 4 per 20 ms, from a simulated person's stream made beforehand)
   go through conditioning, the shipped recogniser (ONNX Runtime, every frame, one thread)
@@ -24,6 +25,7 @@ import math
 import time
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 from rich.table import Table
 
@@ -39,7 +41,7 @@ from wovenskin.recognition.pipeline import (
 )
 from wovenskin.signal.conditioner import LiveConditioner
 from wovenskin.sim.stream import simulate_stream
-from wovenskin.tasks import TASKS, WORKSPACE_LOWER, WORKSPACE_UPPER, make_task
+from wovenskin.tasks import TASKS, WORKSPACE_LOWER, WORKSPACE_UPPER, Task, make_task
 
 CIRCLE_SPEED = 0.1  # m/s
 CIRCLE_RADIUS = 0.05  # m
@@ -56,12 +58,17 @@ class TasksBenchResult(BenchResult):
     control_rtf: float
     contacts: int  # contacts at the end of the run with control
     full_rtf: float  # physics + control + conditioning, recogniser and arbiter
+    resting_rtf: float = 0.0  # physics alone, resting objects asleep
 
     def table(self) -> Table:
         table = figure_table(f"wovenskin bench tasks: the {self.task} scene's physics")
         table.add_row(
-            f"physics alone, arm still ({self.seconds:g} s simulated)",
+            f"physics alone, arm still, all awake ({self.seconds:g} s simulated)",
             f"{self.physics_rtf:.2f} x real time (ratio to 1.0: {self.physics_rtf:.2f})",
+        )
+        table.add_row(
+            "physics alone, arm still, resting objects asleep",
+            f"{self.resting_rtf:.2f} x real time (ratio to 1.0: {self.resting_rtf:.2f})",
         )
         table.add_row(
             f"physics + arm control through the safety layer, {1000 * self.tick_s:g} ms ticks",
@@ -83,10 +90,19 @@ class _Clock:
         return self.now
 
 
-def physics_rtf(task_name: str, seconds: float, seed: int = 0) -> float:
-    """Simulated seconds per wall second of the scene alone (the arm still)."""
+def _scene(task_name: str, seed: int, awake: bool) -> Task:
+    """``task_name``'s scene reset from ``seed``; ``awake``: nothing ever sleeps."""
     task = make_task(task_name)
+    if awake:
+        task.physics.model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     task.reset(seed)
+    return task
+
+
+def physics_rtf(task_name: str, seconds: float, seed: int = 0, awake: bool = True) -> float:
+    """Simulated seconds per wall second of the scene alone (the arm still); ``awake``:
+    no object sleeps."""
+    task = _scene(task_name, seed, awake)
     physics = task.physics
     q = physics.data.qpos[physics.arm_qpos].copy()
     start = time.perf_counter()
@@ -125,9 +141,8 @@ def control_rtf(
 ) -> tuple[float, int]:
     """Simulated seconds per wall second of the scene with the arm under control (and, with
     ``recognise``, a skin stream through the recogniser each tick), and the number of
-    contacts at the end."""
-    task = make_task(task_name)
-    task.reset(seed)
+    contacts at the end.  Every object is kept awake (the worst case)."""
+    task = _scene(task_name, seed, awake=True)
     skin = _SkinFeed(seconds, seed) if recognise else None
     if skin is not None:
         skin.feed(1.0)  # calibration (the first second is contact-free), before the clock
@@ -163,6 +178,7 @@ def run_tasks_benchmark(
     if not (math.isfinite(tick) and 0.0 < tick <= 0.1):
         raise ConfigError(f"tick must be in (0, 0.1] s, got {tick}")
     alone = physics_rtf(task, seconds, seed)
+    resting = physics_rtf(task, seconds, seed, awake=False)
     controlled, contacts = control_rtf(task, seconds, tick, seed)
     full, _ = control_rtf(task, seconds, tick, seed, recognise=True)
-    return TasksBenchResult(task, seconds, tick, alone, controlled, contacts, full)
+    return TasksBenchResult(task, seconds, tick, alone, controlled, contacts, full, resting)

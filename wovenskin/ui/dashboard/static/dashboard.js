@@ -504,6 +504,17 @@ const arm = (() => {
   renderer.setPixelRatio(Math.min(2, window.devicePixelRatio || 1));
   let dirty = true; // draw only when a state arrived or the camera moved: idle pages cost nothing
   renderer.outputColorSpace = THREE.SRGBColorSpace;
+  // Without a GPU (a software rasteriser: SwiftShader, llvmpipe) one frame of this view costs
+  // a CPU core tens of ms, in a browser process that runs at raised priority: drawn at 60 Hz
+  // it starved the control session on a 2-core machine. There the view draws at most
+  // SOFTWARE_FPS; with a GPU, at the display's rate.
+  const SOFTWARE_FPS = 12;
+  const gl = renderer.getContext();
+  const info = gl.getExtension("WEBGL_debug_renderer_info");
+  const rasteriser = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : "";
+  page.softwareRendering = /swiftshader|llvmpipe|softpipe|software/i.test(rasteriser);
+  const minFrameMs = page.softwareRendering ? 1000 / SOFTWARE_FPS : 0;
+  let lastFrame = -Infinity;
   container.appendChild(renderer.domElement);
   const scene = new THREE.Scene();
   scene.background = new THREE.Color(0x181b20);
@@ -682,7 +693,11 @@ const arm = (() => {
       camera.aspect = w / Math.max(1, h); camera.updateProjectionMatrix();
       dirty = true;
     }
-    if (dirty) { renderer.render(scene, camera); dirty = false; page.rendered = (page.rendered || 0) + 1; }
+    const now = performance.now();
+    if (dirty && now - lastFrame >= minFrameMs) {
+      renderer.render(scene, camera); dirty = false; lastFrame = now;
+      page.rendered = (page.rendered || 0) + 1;
+    }
     requestAnimationFrame(render);
   }
   requestAnimationFrame(render);
