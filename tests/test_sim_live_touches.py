@@ -7,6 +7,7 @@ import pytest
 
 from wovenskin.sim.live_touches import (
     MAX_TOUCH_JITTER_S,
+    SLOW_STREAM_S,
     TOUCH_JITTER_MEMORY_S,
     TOUCH_JITTER_S,
     Fingertip,
@@ -58,3 +59,37 @@ def test_the_delay_never_grows_past_its_cap():
     assert touches.jitter_s == pytest.approx(MAX_TOUCH_JITTER_S)
     first = _touch(touches, head=20.0, client_t0=600.0)
     assert first - 20.0 <= MAX_TOUCH_JITTER_S + 1e-9
+
+
+def test_a_stream_slower_than_the_wall_clock_never_holds_back_a_lift_off():
+    """The session renders at half speed: without being brought forward, the lift sent
+    after 2 s would play a second of stream time after the stream reached it."""
+    touches = OutsideTouches(FS, hover_tau_s=0.01)
+    tip = Fingertip(50.0, 50.0, 1.5)
+    head, wall, client = 1.0, 100.0, 500.0
+    touches.add({1: tip}, client, head, wall)
+    for k in range(1, 21):  # 2 s of a resting finger (heartbeats), the stream at half speed
+        touches.add({1: tip}, client + 0.1 * k, head + 0.05 * k, wall + 0.1 * k)
+    head_now = head + 0.05 * 20
+    touches.add({}, client + 2.05, head_now, wall + 2.05)
+    lift = touches.timeline[-1].t
+    assert lift - head_now <= SLOW_STREAM_S + TOUCH_JITTER_S + 1e-9
+    assert all(sample.t <= lift for sample in touches.timeline)  # nothing queued after it
+
+
+def test_a_slow_stream_keeps_the_spacing_of_moving_samples():
+    touches = OutsideTouches(FS, hover_tau_s=0.01)
+    head, wall, client = 1.0, 100.0, 500.0
+    for k in range(21):  # a slide sent live over 2 s while the stream renders half speed
+        touches.add({1: Fingertip(50.0, 20.0 + 4 * k, 1.5)}, client + 0.1 * k,
+                    head + 0.05 * k, wall + 0.1 * k)  # fmt: skip
+    times = [sample.t for sample in touches.timeline if sample.touches]
+    assert times[-1] - times[0] == pytest.approx(2.0)
+
+
+def test_samples_that_arrive_together_keep_their_spacing():
+    touches = OutsideTouches(FS, hover_tau_s=0.01)
+    for k in range(41):  # 0.4 s of drawing delivered at one instant
+        touches.add({1: Fingertip(50.0, 20.0 + k, 1.5)}, 500.0 + 0.01 * k, 1.0, 100.0)
+    times = [sample.t for sample in touches.timeline]
+    assert times[-1] - times[0] == pytest.approx(0.4)

@@ -230,7 +230,8 @@ class SimulatedSkinSource:
         keeps the sender's timing: samples are played a play-out delay behind the first
         sample of a touch (:data:`TOUCH_JITTER_S`, adapted to how late the sender's samples
         have been arriving: see :class:`~wovenskin.sim.live_touches.OutsideTouches`), at
-        their own spacing, however bunched they arrive, and a
+        their own spacing, however bunched they arrive (but never seconds behind a stream
+        that renders slower than the wall clock: lifting stops the arm promptly), and a
         fingertip slides in a straight line from one sample to the next.  A sample later
         than that delays the rest of the touch rather than making the finger jump; one
         timed more than :data:`MAX_TOUCH_LEAD_S` ahead (the sender's clock jumped) plays
@@ -258,7 +259,7 @@ class SimulatedSkinSource:
         fingertips or a non-finite ``client_t``."""
         capped = checked_touches(touches, client_t)
         with self._cond:
-            self._touches.add(capped, client_t, self._rendered / self._fs)
+            self._touches.add(capped, client_t, self._rendered / self._fs, time.monotonic())
             self._cond.notify_all()
 
     @property

@@ -24,6 +24,7 @@ _HOVER_TAIL_TAUS = 4.0  # a lifted outside fingertip is sensed for this many hov
 TOUCH_JITTER_S = 0.03  # timestamped outside touches play at least this far behind their first
 MAX_TOUCH_JITTER_S = 0.3  # sample, and after late samples at most this far (see OutsideTouches)
 TOUCH_JITTER_MEMORY_S = 30.0  # a late sample's extra delay fades over this much stream time
+SLOW_STREAM_S = 0.1  # a touch may fall this far behind the wall clock before it is pulled in
 MAX_TOUCH_LEAD_S = 2.0  # a sample timed further ahead than this re-anchors the sender's clock
 MAX_TOUCH_SEGMENT_S = 0.25  # a fingertip slides between sparse samples over at most this long
 _TOUCH_MOVED_MM = 0.2  # a sample this far from where a fingertip waits moves it
@@ -117,7 +118,14 @@ class OutsideTouches:
     (up to :data:`MAX_TOUCH_JITTER_S`), so the next touches from a sender that stalls (a
     busy page held up 100-400 ms) play intact rather than broken into pieces; the extra
     delay fades over :data:`TOUCH_JITTER_MEMORY_S` of stream time once the sender keeps
-    time again.  Delays change only between touches, never inside one."""
+    time again.  Delays change only between touches, never inside one.
+
+    Lift-off is the exception, because it stops the arm: when the stream renders slower than
+    the wall clock (a starved session: the simulated world runs slow), a long touch builds
+    up a lead over the stream and its lift-off would play seconds after the person lifted.
+    A lift-off (no fingertips left) is brought forward by how far the stream fell behind the
+    wall clock since the touch began, less :data:`SLOW_STREAM_S`, and queued samples after it
+    are dropped: lifting stops the arm as promptly as the stream allows."""
 
     def __init__(self, fs: float, hover_tau_s: float) -> None:
         self.fs = float(fs)
@@ -131,15 +139,23 @@ class OutsideTouches:
         self.jitter_s = TOUCH_JITTER_S  # the play-out delay a new touch starts with
         self._jitter_at = 0.0  # stream time when jitter_s was last raised
         self._touch_delay = TOUCH_JITTER_S  # the touch under way plays this far behind
+        self._wall_anchor: tuple[float, float] | None = None  # (wall, head) at touch start
 
     @property
     def active(self) -> bool:
         """Whether fingertips are on the skin (or still lifting off or queued)."""
         return bool(self.fingers or self.timeline)
 
-    def add(self, capped: dict[int, Fingertip], client_t: float | None, head: float) -> None:
+    def add(
+        self,
+        capped: dict[int, Fingertip],
+        client_t: float | None,
+        head: float,
+        wall: float | None = None,
+    ) -> None:
         """Queue the sample ``capped`` (from :func:`checked_touches`); ``head`` is the stream
-        time of the next frame to render."""
+        time of the next frame to render, ``wall`` the receiver's clock (s, monotonic) when
+        the sample arrived (None: the stream is taken to keep time)."""
         last = self.timeline[-1].t if self.timeline else head
         if client_t is None:
             t = max(head, last)
@@ -148,6 +164,7 @@ class OutsideTouches:
             if self._offset is None or idle:  # a new touch: set the delay
                 self._touch_delay = self._playout_delay(head)
                 self._offset = head + self._touch_delay - client_t
+                self._wall_anchor = None if wall is None else (float(wall), head)
             t = client_t + self._offset
             if t < head:  # later than the buffer allows: delay the rest of the touch
                 self._raise_jitter(head - t, head)
@@ -157,6 +174,9 @@ class OutsideTouches:
                 self._offset -= t - (head + TOUCH_JITTER_S)  # play from now, not then
                 t = head + TOUCH_JITTER_S
             t = self._stretch_starved(capped, client_t, t, head)
+            if not capped:
+                t = self._lift_now(t, head, wall)
+                last = self.timeline[-1].t if self.timeline else head
             t = max(t, last)
             self._client_t = float(client_t)
             previous = self.timeline[-1].touches if self.timeline else None
@@ -171,6 +191,21 @@ class OutsideTouches:
             self.timeline.extend(self._curve(previous, capped, max(start, head), t))
         self._follow_trail(capped)
         self.timeline.append(_TouchSample(t, capped))
+
+    def _lift_now(self, t: float, head: float, wall: float | None) -> float:
+        """The stream time of a lift-off sample due at ``t``: earlier by how far the stream
+        fell behind the wall clock since the touch began (less :data:`SLOW_STREAM_S`),
+        never before ``head``; queued samples after it are dropped (class docstring)."""
+        if wall is None or self._wall_anchor is None:
+            return t
+        wall0, head0 = self._wall_anchor
+        behind = (float(wall) - wall0) - (head - head0) - SLOW_STREAM_S
+        if behind <= 0.0:
+            return t
+        t = max(head, t - behind)
+        while self.timeline and self.timeline[-1].t > t:
+            self.timeline.pop()
+        return t
 
     def _playout_delay(self, head: float) -> float:
         """The delay a touch starting at stream time ``head`` plays behind its first sample:
