@@ -137,7 +137,7 @@ def test_velocity_is_integrated_into_the_tcp(fake: FakeListenNode, link: Link) -
     assert fake.velocity_mode_exits[-1][1] == "StopContinueVmode"
 
 
-def wait_for(condition, timeout: float = 5.0) -> bool:
+def wait_for(condition, timeout: float = 15.0) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if condition():

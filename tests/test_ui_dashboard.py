@@ -105,7 +105,7 @@ def _opener(tmp_path, gesture: str = "swipe_up"):
     return opener
 
 
-def _wait(predicate, timeout: float = 5.0) -> bool:
+def _wait(predicate, timeout: float = 15.0) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if predicate():
@@ -303,7 +303,7 @@ def test_a_page_that_stops_talking_with_a_finger_down_has_it_lifted(runner) -> N
         assert runner.latest()["recognition"]["command"] == "swipe_up"
         assert time.monotonic() - started > 1.2  # longer than the silence allowed
         # then silence, the socket still open: the finger lifts, the command ends
-        assert _wait(lambda: runner.latest()["recognition"]["command"] is None, 4.0)
+        assert _wait(lambda: runner.latest()["recognition"]["command"] is None, 15.0)
         assert _wait(lambda: any("stopped sending" in m for m in runner.latest()["messages"]))
 
 
@@ -353,7 +353,7 @@ def test_a_serial_skin_drives_the_page_and_a_pulled_cable_stops_the_arm(tmp_path
             lambda: any("only the simulated skin" in m for m in runner.latest()["messages"])
         )
         device.stop()  # the cable is pulled
-        assert _wait(lambda: runner.latest()["safety"]["stopped"], timeout=5.0)
+        assert _wait(lambda: runner.latest()["safety"]["stopped"], timeout=15.0)
         assert runner.running
     finally:
         runner.close()
