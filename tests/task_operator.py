@@ -1,0 +1,508 @@
+"""An experimenter's robot operator for the study tasks: closed loop on the server's state.
+
+:class:`Operator` completes ``pick_place`` (cube, cylinder, prism into their molds) and
+``pour`` (empty the cup into the container) in a running dashboard the way a person at the
+page would: it looks at the scene (the session's newest published state on the SERVER,
+``DashboardRunner.latest()``: a loaded machine's page may show a state seconds old), plans
+a few waypoints (above the object at a safe height, turn the gripper to the object's faces,
+down, close, lift, over the mold, turn the object to the mold modulo its symmetry, down,
+open, up; pour: grasp the cup, carry it over the container, tilt, wait, and so on), and
+moves one axis at a time through a :class:`Driver`, re-reading the state after every move
+and correcting.  Nothing is timed open loop: a long move is held until the state shows the
+goal within braking distance, then released; short moves are nudges repeated until the
+measured error is within tolerance.  The operator never decides whether the task
+succeeded: the test reads that from the trial log and the task's state.
+
+The driver interface (one class per study interface; add one for the skin in ``tests/``)::
+
+    class Driver(Protocol):
+        interface: str                  # the page's interface name: "keyboard", ...
+        def prepare(self) -> None: ...  # choose the interface in the page, set it up
+        def press(self, axis: str, sign: int) -> int: ...  # start moving; held until
+        def release(self) -> None: ...                     # ... this stops it
+        def nudge(self, axis: str, sign: int, amount: float) -> int: ...  # a short move
+        def gripper(self) -> int: ...   # toggle the gripper
+
+``axis`` is a BASE-frame axis: ``x``, ``y``, ``z`` (translate, ``amount`` in m) or ``rx``,
+``ry``, ``rz`` (rotate about the TCP, ``amount`` in rad, right-hand rule); ``sign`` is +1
+or -1.  A driver whose interface works in another frame (the keyboard's and the skin's
+gestures act in the tool frame) picks the command whose axis best matches, from the TCP's
+axes in :meth:`ServerView.tool_axes`.  ``nudge`` may move more or less than ``amount``
+(a tap, a step of the pendant's nearest increment): the operator measures and repeats.
+``press``, ``nudge`` and ``gripper`` return how many commands they sent (the session counts
+every press, step, panel setting and toggle; a release is none): the operator waits until
+the server has counted them before it waits for the arm to come to rest.
+A skin driver would hold a gesture on the virtual skin in ``press`` (e.g. a two-finger
+swipe held down) and lift it in ``release``; ``nudge`` a short gesture.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Protocol
+
+import numpy as np
+
+from wovenskin.tasks.pick_place import MOLD_Y, ROW_X
+from wovenskin.tasks.pour import CONTAINER_XY
+from wovenskin.tasks.shapes import MOLD_HEIGHT, SHAPES
+
+TRANSLATIONS = ("x", "y", "z")
+ROTATIONS = ("rx", "ry", "rz")
+
+
+class Driver(Protocol):
+    """See the module docstring."""
+
+    interface: str
+
+    def prepare(self) -> None: ...
+
+    def press(self, axis: str, sign: int) -> int: ...
+
+    def release(self) -> None: ...
+
+    def nudge(self, axis: str, sign: int, amount: float) -> int: ...
+
+    def gripper(self) -> int: ...
+
+
+class OperatorError(AssertionError):
+    """The operator could not do a step (a test failure with what it saw)."""
+
+
+def wrap(angle: float, period: float = 2 * math.pi) -> float:
+    """``angle`` into ``[-period/2, period/2)``."""
+    return (angle + period / 2) % period - period / 2
+
+
+def quat_yaw(q: list[float]) -> float:
+    """Yaw (rad) of a ``[w, x, y, z]`` quaternion's x axis about base z."""
+    w, x, y, z = q
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+class ServerView:
+    """The session's newest state as the server publishes it (``runner.latest()``)."""
+
+    def __init__(self, runner) -> None:
+        self.runner = runner
+        self._names: tuple[str, list[str]] = ("", [])
+
+    def state(self) -> dict:
+        return self.runner.latest() or {}
+
+    def wait(self, predicate, timeout_s: float, what: str) -> dict:
+        """The first state for which ``predicate`` holds; OperatorError after the timeout."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            state = self.state()
+            try:
+                if state and predicate(state):
+                    return state
+            except (KeyError, TypeError, IndexError):
+                pass
+            if time.monotonic() > deadline:
+                raise OperatorError(f"timed out after {timeout_s} s waiting for {what}")
+            time.sleep(0.02)
+
+    def tcp(self, state: dict | None = None) -> np.ndarray:
+        return np.array((state or self.state())["robot"]["tcp"]["pos"])
+
+    def tool_axes(self, state: dict | None = None) -> np.ndarray:
+        """The TCP's x, y, z axes in the base frame, as the rows of a 3x3 array."""
+        tcp = (state or self.state())["robot"]["tcp"]
+        x, z = np.array(tcp["x_axis"]), np.array(tcp["z_axis"])
+        return np.array([x, np.cross(z, x), z])
+
+    def commands(self, state: dict | None = None) -> int:
+        return int((state or self.state())["teleop"]["commands"])
+
+    def _moving_names(self, state: dict) -> list[str]:
+        task = state["task"]["name"]
+        if self._names[0] != task:
+            self._names = (task, [m["name"] for m in self.runner.describe()["task"]["moving"]])
+        return self._names[1]
+
+    def geom(self, name: str, state: dict | None = None) -> list[float]:
+        """A moving task shape's ``[x, y, z, qw, qx, qy, qz]`` (its body's pose for the
+        shapes and the cup's bottom: their geoms sit at the body's frame)."""
+        state = state or self.state()
+        return state["task"]["geoms"][self._moving_names(state).index(name)]
+
+    def finger_gap(self, state: dict | None = None) -> float:
+        state = state or self.state()
+        left, right = self.geom("finger_left", state), self.geom("finger_right", state)
+        return float(np.linalg.norm(np.subtract(left[:3], right[:3])))
+
+    def task_state(self, state: dict | None = None) -> dict:
+        return (state or self.state())["task"]["state"]
+
+
+class Operator:
+    """Completes a task through a :class:`Driver`, closed loop (module docstring)."""
+
+    def __init__(self, runner, driver: Driver, log=print) -> None:
+        self.view = ServerView(runner)
+        self.driver = driver
+        settings = runner.session.mapping.settings
+        self.speed = {"linear": settings.linear_speed, "angular": settings.angular_speed}
+        self.accel = {"linear": settings.linear_accel, "angular": settings.angular_accel}
+        self.log = log
+        self.moves = 0
+
+    # -- one axis, closed loop
+
+    def _kind(self, axis: str) -> str:
+        return "angular" if axis in ROTATIONS else "linear"
+
+    def settle(self, timeout_s: float = 60.0) -> dict:
+        """Wait until nothing is held and the arm is still (two states in a row)."""
+        still = {"n": 0}
+
+        def quiet(s: dict) -> bool:
+            ok = s["teleop"]["held"] is None and not s["robot"]["moving"]
+            ok = ok and s["robot"]["tcp_speed"] < 5e-4
+            still["n"] = still["n"] + 1 if ok else 0
+            return still["n"] >= 3
+
+        return self.view.wait(quiet, timeout_s, "the arm to come to rest")
+
+    def _sent(self, count: int, timeout_s: float = 60.0) -> None:
+        self.view.wait(lambda s: self.view.commands(s) >= count, timeout_s, "the command")
+
+    def align(self, axis: str, error, tol: float, timeout_s: float = 120.0) -> None:
+        """Drive ``axis`` until ``|error(state)| <= tol``; ``error`` is goal minus now in
+        the axis's direction (m or rad), read from the server's state."""
+        kind = self._kind(axis)
+        v, a = self.speed[kind], self.accel[kind]
+        brake = v * v / (2 * a) + v * 0.12  # shaped stop plus the release's way to the server
+        deadline = time.monotonic() + timeout_s
+        state = self.settle()
+        while True:
+            e = float(error(state))
+            if abs(e) <= tol:
+                return
+            if time.monotonic() > deadline:
+                raise OperatorError(f"{axis}: error {e:+.4f} > {tol} after {timeout_s} s")
+            sign = 1 if e > 0 else -1
+            before = self.view.commands(state)
+            self.moves += 1
+            self.log(f"{state['t']:7.2f} s  {axis} {e:+.4f}")
+            if abs(e) > 2.5 * brake:
+                sent = self.driver.press(axis, sign)
+                try:
+                    self._sent(before + sent)
+                    self._hold(axis, lambda s, k=sign: k * float(error(s)), brake, v, timeout_s)
+                finally:
+                    self.driver.release()
+            else:
+                self._sent(before + self.driver.nudge(axis, sign, abs(e)))
+            state = self.settle()
+
+    def _hold(self, axis: str, remaining, brake: float, speed: float, timeout_s: float) -> None:
+        """Keep the press until the goal is within braking distance plus the way the arm
+        goes before the release takes effect: on a loaded machine the session runs its
+        ticks in batches (it catches up with the clock), so the next state may come a
+        batch later; the margin grows with the largest session-time jump seen."""
+        deadline = time.monotonic() + timeout_s
+        last_t, jump = None, 0.0
+        while time.monotonic() < deadline:
+            state = self.view.state()
+            t = float(state["t"])
+            if last_t is not None and t > last_t:
+                jump = max(jump, t - last_t)
+            last_t = t
+            if remaining(state) <= brake + speed * max(0.1, 1.5 * jump):
+                return
+            time.sleep(0.01)
+        raise OperatorError(f"{axis}: the goal did not come near in {timeout_s} s")
+
+    def move_tcp(self, axis: str, goal: float, tol: float = 0.002) -> None:
+        i = TRANSLATIONS.index(axis)
+        self.align(axis, lambda s: goal - self.view.tcp(s)[i], tol)
+
+    def gripper(self, close: bool, timeout_s: float = 20.0) -> None:
+        """Toggle the gripper to ``close`` and wait until the fingers stop."""
+        state = self.settle()
+        if bool(state["teleop"]["gripper_closed"]) != close:
+            self._sent(self.view.commands(state) + self.driver.gripper())
+            self.view.wait(
+                lambda s: bool(s["teleop"]["gripper_closed"]) == close, timeout_s, "the gripper"
+            )
+        last, stable_since = None, time.monotonic()
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            gap = self.view.finger_gap()
+            if last is None or abs(gap - last) > 2e-4:
+                last, stable_since = gap, time.monotonic()
+            elif time.monotonic() - stable_since > 0.6:
+                return
+            time.sleep(0.05)
+        raise OperatorError("the fingers did not come to rest")
+
+    # -- angles read from the state
+
+    def closing_angle(self, state: dict) -> float:
+        """Direction (rad, about base z) of the gripper's closing axis (the tool's y)."""
+        y = self.view.tool_axes(state)[1]
+        return math.atan2(y[1], y[0])
+
+    def tilt(self, state: dict) -> float:
+        """The tool's z axis from straight down, signed as a turn about base +x (rad)."""
+        z = self.view.tool_axes(state)[2]
+        return math.atan2(z[1], -z[2])
+
+    # -- pick and place
+
+    def pick_place(self, travel_z: float = 0.075, grasp_z: float = 0.027, shapes=SHAPES) -> None:
+        """Seat every shape in its mold (the order along the rows), retrying a shape
+        that did not seat (a person picks it up again)."""
+        self.move_tcp("z", travel_z, 0.004)
+        for shape in shapes:
+            for attempt in range(3):
+                self._carry(shape, travel_z, grasp_z)
+                seated = self._seated(shape.name)
+                self.log(f"{shape.name}: seated {seated} (attempt {attempt + 1})")
+                if seated:
+                    break
+            else:
+                raise OperatorError(f"{shape.name} would not seat in three attempts")
+
+    def _seated(self, name: str) -> bool:
+        time.sleep(0.6)  # the next published measures (every 0.2 s of session time)
+        objects = {o["name"]: o for o in self.view.task_state()["objects"]}
+        return bool(objects[name]["seated"])
+
+    def _object(self, name: str, state: dict) -> tuple[np.ndarray, float]:
+        pose = self.view.geom(name, state)
+        return np.array(pose[:3]), quat_yaw(pose[3:])
+
+    def _carry(self, shape, travel_z: float, grasp_z: float) -> None:
+        name = shape.name
+        obj = lambda s: self._object(name, s)  # noqa: E731 - a short reader
+        state = self.settle()
+        if self.view.tcp(state)[2] < travel_z - 0.005:
+            self.move_tcp("z", travel_z, 0.004)
+        # above the object; the closing axis along one of its face normals
+        for i, axis in ((1, "y"), (0, "x")):
+            self.align(axis, lambda s, i=i: obj(s)[0][i] - self.view.tcp(s)[i], 0.004)
+        if shape.symmetry is not None:
+            period = math.pi / 3 if shape.sides == 3 else shape.symmetry
+            self.align(
+                "rz",
+                lambda s: wrap(obj(s)[1] - self.closing_angle(s), period),
+                math.radians(3),
+            )
+        for i, axis in ((1, "y"), (0, "x")):
+            self.align(axis, lambda s, i=i: obj(s)[0][i] - self.view.tcp(s)[i], 0.003)
+        self.move_tcp("z", grasp_z, 0.003)
+        self.gripper(True)
+        self._report(name, "grasped")
+        self.move_tcp("z", grasp_z + 0.05, 0.004)  # the base 35 mm up: above mold walls
+        mold = np.array([ROW_X[SHAPES.index(shape)], MOLD_Y])
+        for i, axis in ((1, "y"), (0, "x")):
+            self.align(axis, lambda s, i=i: mold[i] - obj(s)[0][i], 0.004)
+        if shape.symmetry is not None:
+            self.align("rz", lambda s: -wrap(obj(s)[1], shape.symmetry), math.radians(2.5))
+        for i, axis in ((1, "y"), (0, "x")):
+            self.align(axis, lambda s, i=i: mold[i] - obj(s)[0][i], 0.0015)
+        # down until the base is 3 mm above the table, the fingertips above the mold's
+        # walls (a finger beside the object stands over the wall), open
+        state = self.settle()
+        drop = obj(state)[0][2] - (shape.height / 2 + 0.003)
+        self.move_tcp("z", max(self.view.tcp(state)[2] - drop, MOLD_HEIGHT + 0.004), 0.002)
+        self._report(name, "lowered")
+        self.gripper(False)
+        self._report(name, "released")
+        self.move_tcp("z", travel_z, 0.004)
+
+    def _report(self, name: str, what: str) -> None:
+        state = self.view.state()
+        (x, y, z), yaw = self._object(name, state)
+        tcp = self.view.tcp(state)
+        self.log(
+            f"{name} {what}: at ({x:.4f}, {y:.4f}, {z:.4f}) yaw {math.degrees(yaw):.1f} deg,"
+            f" TCP ({tcp[0]:.4f}, {tcp[1]:.4f}, {tcp[2]:.4f})"
+        )
+
+    # -- pouring
+
+    def pour(self, grasp_z: float = 0.03, carry_z: float = 0.14, pour_y: float = -0.19) -> None:
+        """Grasp the cup low, carry it over the container, tilt it about base +x (its rim
+        toward -y) until it is empty, and hold it there."""
+        cup = lambda s: np.array(self.view.geom("cup_bottom", s)[:3])  # noqa: E731
+        self.move_tcp("z", carry_z, 0.005)
+        for i, axis in ((1, "y"), (0, "x")):
+            self.align(axis, lambda s, i=i: cup(s)[i] - self.view.tcp(s)[i], 0.004)
+        self.move_tcp("z", grasp_z, 0.003)
+        self.gripper(True)
+        self.move_tcp("z", carry_z, 0.005)
+        goal = np.array([CONTAINER_XY[0], pour_y])
+        for i, axis in ((1, "y"), (0, "x")):
+            self.align(axis, lambda s, i=i: goal[i] - self.view.tcp(s)[i], 0.005)
+        measures = self.view.task_state
+        for degrees in (95, 108):  # tip it further if the cup does not empty
+            self.align("rx", lambda s, d=degrees: math.radians(d) - self.tilt(s), math.radians(6))
+            try:
+                self.view.wait(lambda s: measures(s)["in_cup"] <= 1, 20, "the cup to empty")
+                break
+            except OperatorError:
+                self.log(f"at {degrees} deg the cup still holds {measures(self.view.state())}")
+        self.log(f"poured: {measures(self.view.state())}")
+
+
+# -- the page's interfaces (Playwright)
+
+
+class PageDriver:
+    """What the page drivers share: the page, the server's view, the interface choice."""
+
+    interface = ""
+
+    def __init__(self, page, view: ServerView) -> None:
+        self.page = page
+        self.view = view
+
+    def prepare(self) -> None:
+        self.page.select_option("#interface", self.interface)
+        self.view.wait(
+            lambda s: s["teleop"]["interface"] == self.interface, 30, "the interface choice"
+        )
+        self.page.evaluate("document.activeElement && document.activeElement.blur()")
+
+
+class KeyboardDriver(PageDriver):
+    """The page's keys (``page.keyboard``), tool frame: for a base-frame axis the key of
+    the tool axis that best matches it now, with the sign of their alignment."""
+
+    interface = "keyboard"
+
+    def __init__(self, page, view: ServerView, mapping) -> None:
+        super().__init__(page, view)
+        from wovenskin.teleop.keyboard import key_map
+
+        self.keys = {row.action: row.key for row in key_map(mapping)}
+        self.speed = {"linear": mapping.settings.linear_speed,
+                      "angular": mapping.settings.angular_speed}  # fmt: skip
+        self.held: str | None = None
+
+    def key(self, axis: str, sign: int) -> str:
+        base = np.eye(3)["xyz".index(axis[-1])]
+        dots = self.view.tool_axes() @ base
+        k = int(np.argmax(np.abs(dots)))
+        kind = "rotate" if axis in ROTATIONS else "translate"
+        mark = "+" if sign * dots[k] > 0 else "-"
+        return self.keys[f"{kind} {mark}{'xyz'[k]}"]
+
+    def press(self, axis: str, sign: int) -> int:
+        self.held = self.key(axis, sign)
+        self.page.keyboard.down(self.held)
+        return 1
+
+    def release(self) -> None:
+        if self.held is not None:
+            self.page.keyboard.up(self.held)
+            self.held = None
+
+    def nudge(self, axis: str, sign: int, amount: float) -> int:
+        """A tap held about as long as the move takes at full speed (the twist's ramp
+        makes a short tap move less; the operator repeats)."""
+        key = self.key(axis, sign)
+        speed = self.speed["angular" if axis in ROTATIONS else "linear"]
+        self.page.keyboard.down(key)
+        time.sleep(min(0.3, max(0.03, amount / speed)))
+        self.page.keyboard.up(key)
+        return 1
+
+    def gripper(self) -> int:
+        self.page.keyboard.press("g")
+        return 1
+
+
+class PendantDriver(PageDriver):
+    """The page's jog panel in the base frame at 100 % speed: a jog button held with the
+    mouse for long moves, step mode (10, 5, 1 mm or deg per click) for short ones."""
+
+    interface = "pendant"
+
+    def prepare(self) -> None:
+        super().prepare()
+        self._choose("#jog-frame", "base")
+        self.page.evaluate(
+            "(() => { const s = document.getElementById('jog-speed'); s.value = 100;"
+            " s.dispatchEvent(new Event('change')); })()"
+        )
+        self.view.wait(
+            lambda s: (
+                s["teleop"]["pendant"]["speed_percent"] == 100
+                and s["teleop"]["pendant"]["frame"] == "base"
+            ),
+            30,
+            "the pendant's settings",
+        )
+        self.step: int | None = -1  # unknown: the first _mode sets it
+        self._mode(None)
+
+    def _mode(self, size: int | None) -> int:
+        """Step mode ``size`` (None: continuous jog); returns the commands it took."""
+        if self.step == size:
+            return 0
+        self._choose("#jog-step", "off" if size is None else str(size))
+        self.step = size
+        return 1
+
+    def _choose(self, selector: str, value: str) -> None:
+        """Choose an option of a select as a person does (its change event), in one script
+        (``select_option`` waits for a stable frame, a second or more on a busy page)."""
+        self.page.evaluate(
+            "([selector, value]) => { const s = document.querySelector(selector);"
+            " s.value = value; s.dispatchEvent(new Event('change')); }",
+            [selector, value],
+        )
+
+    def _at(self, selector: str) -> None:
+        """Put the mouse over an element, scrolled into view.  Mouse events, and the
+        element's box read by one script: on a page busy drawing its 3D view on the CPU,
+        Playwright's click and bounding_box wait a second or more for a stable frame."""
+        x, y = self.page.evaluate(
+            """(selector) => {
+                const element = document.querySelector(selector);
+                let r = element.getBoundingClientRect();
+                if (r.top < 0 || r.bottom > window.innerHeight) {
+                    element.scrollIntoView({ block: "center" });
+                    r = element.getBoundingClientRect();
+                }
+                return [r.left + r.width / 2, r.top + r.height / 2];
+            }""",
+            selector,
+        )
+        self.page.mouse.move(x, y)
+
+    def _button(self, axis: str, sign: int) -> None:
+        self._at(f'#jog-axes button[data-axis="{axis}"][data-sign="{sign}"]')
+
+    def press(self, axis: str, sign: int) -> int:
+        sent = self._mode(None)
+        self._button(axis, sign)
+        self.page.mouse.down()
+        return sent + 1
+
+    def release(self) -> None:
+        self.page.mouse.up()
+
+    def nudge(self, axis: str, sign: int, amount: float) -> int:
+        unit = amount * (math.degrees(1) if axis in ROTATIONS else 1000.0)
+        size = max(s for s in (1, 5, 10) if s <= max(unit, 1.0))
+        sent = self._mode(size)
+        self._button(axis, sign)
+        self.page.mouse.down()
+        self.page.mouse.up()
+        return sent + 1
+
+    def gripper(self) -> int:
+        self._at("#jog-gripper")
+        self.page.mouse.down()
+        self.page.mouse.up()
+        return 1

@@ -1,0 +1,195 @@
+"""A short study run in real headless Chromium: both tasks completed with the keyboard and the
+teach pendant, each as a study trial started from the page's study panel, then the report.
+
+One dashboard and one study folder serve the whole module, so the trials accumulate in one
+study: participant P01 does ``pick_place`` and ``pour`` with the keyboard (page keys) and
+the pendant (jog panel buttons held with the mouse, step clicks near the goal).  Each trial
+is started from the study panel (participant, task and interface chosen in the page) and
+ends by itself on the task's own success; the robot is operated by
+:class:`task_operator.Operator`, closed loop on the session's state read on the server.
+The last test runs the study report on the folder and checks its tables and plots.
+
+The study's mapping doubles the default speeds (100 mm/s, 30 deg/s, with doubled
+accelerations): an experimenter's setting that keeps each completion near a minute of wall
+time.  Skipped without Chromium or Playwright unless ``WOVENSKIN_REQUIRE_BROWSER=1``; the
+wall time of every completion is written to ``artifacts/browser/study-timings.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from importlib import resources
+from pathlib import Path
+
+import pytest
+from stand_ins import ContactMeans
+from task_operator import KeyboardDriver, Operator, PendantDriver, ServerView
+from test_ui_dashboard_browser import SHOTS, _save, browser  # noqa: F401 - the fixture
+
+from wovenskin.runtime.session import open_session
+from wovenskin.study.definition import add_participant, init_study
+from wovenskin.study.reader import read_trials
+from wovenskin.study.report import write_report
+from wovenskin.study.tables import task_table
+from wovenskin.ui.dashboard.runner import DashboardRunner
+from wovenskin.ui.dashboard.server import BackgroundServer
+
+pytestmark = pytest.mark.browser  # drives chromium: `make test-fast` leaves it out
+
+PARTICIPANT = "P01"
+RUNS = [
+    ("pick_place", "keyboard"),
+    ("pick_place", "pendant"),
+    ("pour", "keyboard"),
+    ("pour", "pendant"),
+]
+SPEEDS = {  # the default mapping's [motion] values -> the study's
+    "linear_speed = 0.05": "linear_speed = 0.1",
+    "angular_speed = 15.0": "angular_speed = 30.0",
+    "linear_accel = 0.25": "linear_accel = 0.5",
+    "angular_accel = 90.0": "angular_accel = 180.0",
+}
+TIMINGS: dict[str, dict] = {}
+
+
+def _study_mapping(path: Path) -> Path:
+    text = resources.files("wovenskin.control").joinpath("default_mapping.toml").read_text()
+    for old, new in SPEEDS.items():
+        assert old in text, old
+        text = text.replace(old, new)
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def study_dir(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("study") / "study"
+    init_study(folder, "browser study")
+    add_participant(folder, PARTICIPANT, "novice")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def dashboard(tmp_path_factory, study_dir):
+    home = tmp_path_factory.mktemp("dashboard")
+    mapping = _study_mapping(home / "mapping.toml")
+
+    def opener(skin: str, robot: str, task=None):
+        return open_session(
+            skin, robot, recognizer=ContactMeans("swipe_up"), poses=home / "poses.toml",
+            task=task, mapping=mapping,
+        )  # fmt: skip
+
+    runner = DashboardRunner(opener, "none", "sim", task="pick_place", study_dir=study_dir)
+    server = BackgroundServer(runner)
+    server.start()
+    yield server
+    server.stop()
+
+
+@pytest.fixture(scope="module")
+def page(browser, dashboard):  # noqa: F811 - the browser fixture imported above
+    context = browser.new_context(viewport={"width": 1440, "height": 900})
+    page = context.new_page()
+    problems: list[str] = []
+    page.on("console", lambda m: problems.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
+    page.goto(dashboard.url)
+    page.wait_for_function("window.wovenskin && window.wovenskin.received > 3", timeout=60000)
+    page.wait_for_function("window.wovenskin.task && window.wovenskin.task.moving > 0")
+    page.problems = problems
+    yield page
+    context.close()
+
+
+def _choose_task(page, view: ServerView, task: str) -> None:
+    if view.state()["task"]["name"] != task:
+        page.select_option("#task", task)
+        view.wait(lambda s: s["task"]["name"] == task, 60, f"the {task} scene")
+    page.wait_for_function(
+        f"window.wovenskin.task && window.wovenskin.task.name === '{task}'", timeout=60000
+    )
+
+
+def _start_trial(page, view: ServerView, task: str, interface: str) -> None:
+    page.fill("#participant", PARTICIPANT)
+    page.evaluate("document.activeElement.blur()")  # page keys go nowhere while typing
+    page.click("#trial-start")
+    view.wait(
+        lambda s: (
+            s["study"]["running"]
+            and s["study"]["task"] == task
+            and s["study"]["interface"] == interface
+        ),
+        30,
+        "the trial to start",
+    )
+
+
+@pytest.mark.parametrize(("task", "interface"), RUNS)
+def test_a_study_trial_completes_the_task(page, dashboard, task, interface) -> None:
+    runner = dashboard.runner
+    view = ServerView(runner)
+    _choose_task(page, view, task)
+    if interface == "keyboard":
+        driver = KeyboardDriver(page, view, runner.session.mapping)
+    else:
+        driver = PendantDriver(page, view)
+    driver.prepare()
+    _start_trial(page, view, task, interface)
+    lines: list[str] = []
+    operator = Operator(runner, driver, log=lines.append)
+    started, session_t0 = time.monotonic(), view.state()["t"]
+    try:
+        getattr(operator, task)()
+        state = view.wait(lambda s: not s["study"]["running"], 60, "the trial to end")
+    except Exception:
+        print("\n".join(lines[-60:]))  # what the operator did last, for the failure report
+        raise
+    finally:
+        driver.release()
+        if view.state()["study"]["running"]:  # leave the panel free for the next trial
+            page.click("#trial-abort")
+            view.wait(lambda s: not s["study"]["running"], 30, "the trial to abort")
+    wall = time.monotonic() - started
+    last = state["study"]["last"]
+    summary = json.loads((Path(last["folder"]) / "trial.json").read_text())
+    TIMINGS[f"{task}-{interface}"] = {
+        "wall_s": round(wall, 1),
+        "session_s": round(state["t"] - session_t0, 1),
+        "trial_s": round(summary["duration_s"], 1),
+        "commands": summary["commands"],
+        "operator_moves": operator.moves,
+    }
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    (SHOTS / "study-timings.json").write_text(json.dumps(TIMINGS, indent=2))
+    _save(page, f"study-{task}-{interface}.png")
+    assert last["outcome"] == "success", (last, lines[-20:])
+    assert summary["outcome"] == "success" and summary["commands"] > 0
+    assert summary["task"] == task and summary["interface"] == interface
+    measures = view.task_state()
+    assert measures["succeeded"] and not measures["failed"]
+    if task == "pick_place":
+        assert measures["seated"] == measures["total"] == 3
+    else:
+        assert measures["spilled"] == 0 and measures["in_cup"] <= 5
+    assert page.problems == []
+
+
+def test_the_study_report_has_every_task_and_interface(study_dir) -> None:
+    trials, warnings = read_trials(study_dir)
+    done = {(t.task, t.interface) for t in trials}
+    assert set(RUNS) <= done, f"trials missing from the study: {set(RUNS) - done}"
+    report = write_report(study_dir)
+    for task in ("pick_place", "pour"):
+        rows = {c.interface: c for c in task_table(trials, task, ("keyboard", "pendant"))}
+        for interface in ("keyboard", "pendant"):
+            row = rows[interface]
+            assert row.trials >= 1 and row.success_rate == 1.0
+            assert row.time_mean > 0 and row.commands_mean > 0
+        assert (report.markdown.parent / f"{task}-box.png").stat().st_size > 1000
+        assert f"Task: {task}" in report.markdown.read_text()
+    pngs = [p for p in report.written if p.suffix == ".png"]
+    assert len(pngs) >= 2 and all(p.read_bytes()[:4] == b"\x89PNG" for p in pngs)
+    assert "100 %" in report.markdown.read_text()
