@@ -12,7 +12,7 @@ import pytest
 
 from wovenskin.errors import ConfigError
 from wovenskin.runtime.sources import open_source
-from wovenskin.sim.live import SimulatedSkinSource
+from wovenskin.sim.live import MAX_READER_LAG_S, SimulatedSkinSource
 from wovenskin.sim.live_touches import Fingertip
 from wovenskin.skin.frames import Frame, SourceEvent
 from wovenskin.skin.source import SkinSource
@@ -432,3 +432,21 @@ def test_a_sparse_press_rises_smoothly_between_its_samples():
     assert np.all(np.diff(rising) >= -1e-9)  # it only rises ...
     assert np.diff(rising).max() < 0.1  # ... ~0.04 N per frame, never a 0.75 N step
     assert len(rising) >= 50  # over ~0.3-0.4 s of frames
+
+
+def test_a_reader_that_falls_behind_slows_the_simulated_world():
+    """A starved reader gets at most MAX_READER_LAG_S of frames at once: the stream clock
+    is held back instead (no seconds-old touches acted on in one burst)."""
+    source = SimulatedSkinSource(seed=4, autonomous=False, lookahead_s=0.03)
+    source.start()
+    try:
+        collect(source, 10)
+        time.sleep(1.0)  # the reader is busy elsewhere for a second
+        burst = [item for item in source.poll(0.0) if isinstance(item, Frame)]
+        assert 1 <= len(burst) <= MAX_READER_LAG_S * FS + 1
+        assert source.slowed_s > 0.5
+        frames = collect(source, 40)
+        seqs = [f.seq for f in burst + frames]
+        assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # nothing skipped
+    finally:
+        source.close()

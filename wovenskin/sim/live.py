@@ -46,6 +46,7 @@ _IDLE_CHUNK_S = 0.05  # idle is rendered in small pieces so that requests start 
 _PERFORMANCE_CHUNK_S = 0.05  # performances too: a long one rendered at once starved the reader
 _UNPACED_BUFFER_S = 1.0  # speed=0: frames kept ready for the consumer
 _TOUCH_CHUNK_S = 0.01  # outside fingertips are rendered in pieces this long
+MAX_READER_LAG_S = 0.1  # a reader further behind slows the simulated world (see poll)
 
 
 @dataclass
@@ -131,6 +132,7 @@ class SimulatedSkinSource:
         self._closed = False
         self._paused = False
         self._clock_origin = 0.0  # wall time at which stream time 0 was (shifted by pauses)
+        self.slowed_s = 0.0  # wall seconds the stream was held back for a slow reader (poll)
         self._paused_at = 0.0
         self._touches = OutsideTouches(fs, self.physics.hover_tau_s)  # set_touches
         self._performing: _Performing | None = None  # a performance still being rendered
@@ -171,7 +173,7 @@ class SimulatedSkinSource:
                 out.extend(self._notices)
                 self._notices.clear()
                 now = time.monotonic()
-                due = self._due_frames(now)
+                due = self._hold_back(self._due_frames(now))
                 while self._buffer and self._delivered < due:
                     values = self._buffer.popleft()
                     seq = self._delivered
@@ -293,6 +295,22 @@ class SimulatedSkinSource:
             return self._delivered + self.max_batch
         clock = (self._paused_at if self._paused else now) - self._clock_origin
         return int(clock * self.speed * self._fs) + 1
+
+    def _hold_back(self, due: int) -> int:
+        """``due``, or fewer when the reader is more than :data:`MAX_READER_LAG_S` behind:
+        then the stream clock is held back by the excess, so a starved reader (a session
+        that cannot keep real time beside a browser) runs the simulated world slower
+        instead of receiving seconds of frames at once and acting on touches seconds old
+        (a lift-off among them: the arm moved on for as long).  Lock held."""
+        if self.speed == 0 or self._paused:
+            return due
+        allowed = self._delivered + max(1, int(MAX_READER_LAG_S * self.speed * self._fs))
+        if due <= allowed:
+            return due
+        behind = (due - allowed) / (self.speed * self._fs)
+        self._clock_origin += behind
+        self.slowed_s += behind
+        return allowed
 
     def _wait_hint(self, now: float) -> float:
         if self.speed == 0 or self._paused:
