@@ -135,6 +135,7 @@ def test_the_page_state_is_complete_and_json(runner) -> None:
     assert len(state["robot"]["geoms"]) == len(runner.scene.shapes)
     assert len(state["robot"]["skin_corners"]) == 3 and len(state["robot"]["twist"]) == 6
     assert "lookahead=0.03" in state["skin"]["source"]  # quick virtual touches
+    assert state["sim_slowed_s"] >= 0.0  # how far a busy machine slowed the simulated world
     described = runner.describe()
     assert described["gestures"] == [n for n in CLASS_NAMES if n != "invalid"]
     limits = runner.session.safety.limits  # the box the 3D view draws is the enforced one

@@ -321,6 +321,7 @@ class DashboardRunner:
             "teleop": self.inputs.part(session),
             "study": self.study.part(float(session.now)),
             "task": self._task_part(session),
+            "sim_slowed_s": None if (source := self._sim_source()) is None else source.slowed_s,
         }
         snapshot = build_snapshot(
             session,

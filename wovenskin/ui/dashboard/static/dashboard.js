@@ -177,9 +177,23 @@ function updateSkin(skin) {
     skinCtx.fillText("calibrating: hands off", 10, H / 2);
   }
   const k = skin.counters;
-  $("skin-status").textContent = `${skin.fps.toFixed(0)} fps${skin.stalled ? " · STALLED" : ""}${skin.virtual ? "" : " · drawing off (not simulated)"}`;
+  $("skin-status").textContent = `${skin.fps.toFixed(0)} fps${skin.stalled ? " · STALLED" : ""}${skin.virtual ? "" : " · drawing off (not simulated)"}${slowMotion(page.state)}`;
   $("skin-counters").textContent = `frames ${k.good} · bad ${k.bad} · dropped ${k.dropped} · reconnects ${k.reconnects} · errors ${k.session_errors}` +
     (skin.last_error ? `\nlast: ${skin.last_error}` : "");
+}
+
+// When this computer cannot keep the session in real time, the simulated skin slows the
+// simulated world rather than hand the session seconds-old touches (sim/live.py): say so.
+let slowSeen = null; // [page ms, slowed s] a second ago
+function slowMotion(state) {
+  const slowed = state.sim_slowed_s;
+  if (slowed === null || slowed === undefined) return "";
+  const now = performance.now();
+  if (slowSeen === null || now - slowSeen[0] > 2000) slowSeen = [now, slowed, 0];
+  else if (now - slowSeen[0] > 1000) slowSeen = [now, slowed, (slowed - slowSeen[1]) / ((now - slowSeen[0]) / 1000)];
+  const lost = slowSeen[2] || 0; // wall seconds held back per second
+  page.simSpeed = Math.max(0, 1 - lost);
+  return lost > 0.05 ? ` · slow motion: ${Math.round(100 * (1 - lost))}% of real time (this computer is busy)` : "";
 }
 
 function mmToCanvas() {
