@@ -48,8 +48,7 @@ SUS_ITEMS: tuple[str, ...] = (
     "I think that I would like to use this system frequently.",
     "I found the system unnecessarily complex.",
     "I thought the system was easy to use.",
-    "I think that I would need the support of a technical person to be able to use this "
-    "system.",
+    "I think that I would need the support of a technical person to be able to use this system.",
     "I found the various functions in this system were well integrated.",
     "I thought there was too much inconsistency in this system.",
     "I would imagine that most people would learn to use this system very quickly.",
