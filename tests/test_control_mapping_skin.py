@@ -89,15 +89,20 @@ def test_patch_axes_are_read_and_checked_from_the_file() -> None:
         MotionSettings(frame="patch")  # type: ignore[arg-type]
 
 
-def test_a_swipe_right_moves_the_tcp_along_the_patchs_columns(tmp_path) -> None:
+@pytest.mark.parametrize("how", ["mapping file", "session override"])
+def test_a_swipe_right_moves_the_tcp_along_the_patchs_columns(tmp_path, how) -> None:
+    """``[motion] frame = "skin"`` in the mapping, or the session's ``gesture_frame`` (the
+    dashboard's skin_registered interface) over the default tool-frame mapping."""
     stream = simulate_stream(6.0, seed=3, gestures=["swipe_right"], invalid_fraction=0.0)
     path = tmp_path / "swipe.npz"
     write_labelled_stream(path, stream)
+    mapping = skin_mapping_file(tmp_path) if how == "mapping file" else None
     session = open_session(
         f"replay:{path}", "sim", recognizer=ContactMeans("swipe_right"), fast_replay=True,
-        trace=TraceWriter(io.StringIO()), poses=tmp_path / "poses.toml",
-        mapping=skin_mapping_file(tmp_path),
+        trace=TraceWriter(io.StringIO()), poses=tmp_path / "poses.toml", mapping=mapping,
     )  # fmt: skip
+    if how == "session override":
+        session.gesture_frame = "skin"
     session.start()
     start_q = np.asarray(session.robot.state().q, dtype=float)
     start = np.asarray(session.robot.state().tcp.position, dtype=float)

@@ -250,3 +250,20 @@ def test_a_trial_needs_a_study_a_task_and_a_known_participant(tmp_path) -> None:
     with pytest.raises(ValueError, match="no trial is running"):
         panel.end(0.0, "success")
     assert panel.part(0.0) == {"folder": str(tmp_path / "s"), "running": False, "last": None}
+
+
+def test_the_skin_registered_interface_reads_gestures_in_the_patch_frame(tmp_path) -> None:
+    runner = _runner(tmp_path)
+    try:
+        assert runner.session.gesture_frame is None  # the paper's tool-frame mapping
+        _command(runner, cmd="interface", interface="skin_registered")
+        assert runner.latest()["teleop"]["interface"] == "skin_registered"
+        assert runner.session.gesture_frame == "skin"
+        _command(runner, cmd="task", task="pour")  # a new session keeps the interface's frame
+        assert _wait(lambda: runner.task is not None and runner.task.name == "pour")
+        assert _wait(lambda: runner.session.gesture_frame == "skin")
+        _command(runner, cmd="interface", interface="skin")
+        assert runner.session.gesture_frame is None
+        assert "skin_registered" in runner.describe()["interfaces"]
+    finally:
+        runner.close()

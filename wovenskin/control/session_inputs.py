@@ -129,6 +129,9 @@ class SessionInputs:
         self.gripper_closed = False
         # on_gripper(closed) drives the gripper; default: the arm's own (set_gripper), if any
         self.on_gripper: Callable[[bool], None] | None = None
+        # the frame the skin's gestures are read in, over the mapping's motion.frame (None:
+        # the mapping's; "skin": the skin-registered mapping a study may compare)
+        self.gesture_frame: str | None = None
         self._held = None
 
     def add_input(self, source: CommandInput) -> None:
@@ -209,7 +212,7 @@ class SessionInputs:
             return held.label, held.action, frame, held.since
         if gesture is None:
             return None, None, None, None
-        return gesture, self.mapping.action_for(gesture), None, since
+        return gesture, self.mapping.action_for(gesture), self.gesture_frame, since
 
     def _target_twist(self, action: Any, frame: str | None, robot: RobotState) -> np.ndarray:
         """Full-speed base-frame twist of a twist action or a joint jog."""

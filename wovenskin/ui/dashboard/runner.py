@@ -410,7 +410,7 @@ class DashboardRunner:
         elif name == "interface":
             if self.study.running:
                 raise ConfigError("a trial is running: end it before changing the interface")
-            self.inputs.choose(check_interface(command.get("interface")))
+            self.inputs.choose(check_interface(command.get("interface")), session)
             if (scale := self.inputs.speed()) is not None:
                 session.set_speed_scale(scale)
             session.state.messages.append(f"interface: {self.inputs.interface}")

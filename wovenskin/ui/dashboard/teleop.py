@@ -20,7 +20,8 @@ from wovenskin.errors import ConfigError
 from wovenskin.teleop.keyboard import Keyboard, key_map
 from wovenskin.teleop.pendant import POSES, Pendant
 
-INTERFACES = ("skin", "keyboard", "pendant")
+INTERFACES = ("skin", "skin_registered", "keyboard", "pendant")
+GESTURE_FRAMES = {"skin_registered": "skin"}  # interfaces that read gestures in another frame
 PENDANT_OPS = ("frame", "speed", "step", "press", "release", "go_to", "gripper")
 
 
@@ -46,15 +47,26 @@ class PageInputs:
         self.interface = check_interface(interface)
 
     def attach(self, session: Any) -> None:
-        """Poll both inputs in ``session`` (a new session after a switch)."""
+        """Poll both inputs in ``session`` (a new session after a switch) and read its
+        gestures in the chosen interface's frame."""
         self.release_all()
         session.add_input(self.keyboard)
         session.add_input(self.pendant)
+        session.gesture_frame = self.gesture_frame
 
-    def choose(self, interface: str) -> None:
-        """Choose the interface; whatever the others held comes up."""
+    def choose(self, interface: str, session: Any = None) -> None:
+        """Choose the interface; whatever the others held comes up.  ``skin_registered``
+        is the skin with its gestures read in the skin patch's frame (``session``'s
+        ``gesture_frame``), ``skin`` the mapping's own frame (the paper's tool frame)."""
         self.interface = check_interface(interface)
         self.release_all()
+        if session is not None:
+            session.gesture_frame = self.gesture_frame
+
+    @property
+    def gesture_frame(self) -> str | None:
+        """The frame the chosen interface reads gestures in (None: the mapping's)."""
+        return GESTURE_FRAMES.get(self.interface)
 
     def speed(self) -> float | None:
         """The speed scale the chosen interface sets: the pendant's override, else none."""
@@ -99,7 +111,7 @@ class PageInputs:
 
 def check_interface(interface: object) -> str:
     if interface not in INTERFACES:
-        raise ConfigError(f"unknown interface {interface!r}: use skin, keyboard or pendant")
+        raise ConfigError(f"unknown interface {interface!r}: use {', '.join(INTERFACES)}")
     return str(interface)
 
 
