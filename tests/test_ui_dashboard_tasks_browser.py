@@ -202,3 +202,14 @@ def test_a_questionnaire_answered_in_the_page_is_scored_into_the_study(page, stu
     assert _wait_for(page, f"{said} li.textContent.includes('questionnaire of P01'))", 10)
     _save(page, "dashboard-questionnaire.png")
     assert page.problems == []
+
+
+def test_the_panel_shows_the_participants_planned_condition_and_uses_it(page) -> None:
+    _choose(page, "pendant")
+    page.fill("#participant", "P01")  # the first row of the Williams squares
+    shown = "document.getElementById('plan').textContent"
+    assert _wait_for(page, f"{shown}.includes('step 1 of 6')", 15)
+    assert "pick place with skin" in page.text_content("#plan")
+    page.click("#plan-use")
+    assert _wait_for(page, "window.wovenskin.state.teleop.interface === 'skin'", 15)
+    assert page.problems == []

@@ -37,6 +37,7 @@ from wovenskin.signal.live_skin import RateMeter
 from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.ports import list_ports
 from wovenskin.tasks import TASKS, Task, make_task
+from wovenskin.ui.dashboard.plan import next_step
 from wovenskin.ui.dashboard.questionnaire import forms, record_answers
 from wovenskin.ui.dashboard.scene import ArmScene, TaskScene
 from wovenskin.ui.dashboard.snapshot import Timeline, TimelineEntry, build_snapshot
@@ -64,6 +65,7 @@ COMMANDS = (
     "gripper",
     "trial",
     "questionnaire",
+    "plan",
 )
 TASK_STATE_PERIOD_S = 0.2  # the task's measures in the page: 5 per second (pour: 1 ms each)
 DEFAULT_SIM_LOOKAHEAD = "0.03"  # s of frames the simulated skin renders ahead (touch latency)
@@ -118,6 +120,7 @@ class DashboardRunner:
         self.task_scene: TaskScene | None = None
         self.inputs = PageInputs(interface)
         self.study = StudyPanel(study_dir)
+        self.plan: dict | None = None  # the page's participant's next planned condition
         self._task_state: tuple[float, dict | None] = (-1.0, None)
         self.timeline = Timeline()
         self.latency = TouchLatency()
@@ -279,6 +282,7 @@ class DashboardRunner:
                 self.study.trial = self.study.recorder = None
             if line:
                 session.state.messages.append(line)
+                self._replan()
             if now >= self._next_publish:  # a fixed schedule: the rate holds on average
                 period = 1.0 / self.ui_rate_hz
                 self._next_publish = max(self._next_publish + period, now)
@@ -319,7 +323,7 @@ class DashboardRunner:
             "autoplay": self._autoplay(),
             "failure": self.failure,
             "teleop": self.inputs.part(session),
-            "study": self.study.part(float(session.now)),
+            "study": {**self.study.part(float(session.now)), "plan": self.plan},
             "task": self._task_part(session),
             "sim_slowed_s": None if (source := self._sim_source()) is None else source.slowed_s,
         }
@@ -418,6 +422,8 @@ class DashboardRunner:
             self.inputs.gripper(session)
         elif name == "trial":
             self._trial(session, str(command.get("op")), command.get("participant"))
+        elif name == "plan":  # the page's participant changed: where they stand
+            self.plan = next_step(self.study.study_dir, command.get("participant"))
         elif name == "questionnaire":
             session.state.messages.append(record_answers(self.study.study_dir, command))
 
@@ -428,6 +434,12 @@ class DashboardRunner:
         else:
             line = self.study.end(t, op)
         session.state.messages.append(line)
+        self._replan(participant)
+
+    def _replan(self, participant: object = None) -> None:
+        """The plan's next step for ``participant`` (default: the one shown)."""
+        who = participant or (self.plan or {}).get("participant")
+        self.plan = next_step(self.study.study_dir, who)
 
     def _switch(self, skin: str, robot: str, task: str | None = None) -> None:
         """Replace this session by one with another skin or robot.

@@ -253,6 +253,29 @@ export function setupStudy({ $, page, send, command }) {
     $("questionnaire").reset();
     for (const item of forms.nasa_tlx || []) $(`q-tlx-${item.key}-value`).textContent = "50";
   });
+  // ---------------------------------------------------------------- the plan
+  // The participant's next condition in the study's counterbalanced plan (plan.py);
+  // "Use" chooses its task and interface.
+  let planTimer = null;
+  $("participant").addEventListener("input", () => {
+    clearTimeout(planTimer);
+    planTimer = setTimeout(() => command("plan", { participant: $("participant").value.trim() }), 300);
+  });
+  $("plan-use").addEventListener("click", () => {
+    const plan = page.state && page.state.study && page.state.study.plan;
+    if (!plan || plan.done) return;
+    if ($("task").value !== plan.task) command("task", { task: plan.task });
+    command("interface", { interface: plan.interface });
+  });
+  function showPlan(study) {
+    const plan = study.plan;
+    $("plan-use").hidden = !plan || plan.done || study.running;
+    if (!plan) { $("plan").textContent = ""; return; }
+    $("plan").textContent = plan.done
+      ? `plan: ${plan.participant} has done all ${plan.steps} conditions`
+      : `plan: step ${plan.step} of ${plan.steps} · ${plan.task.replace("_", " ")} with ${plan.interface.replace("_", " ")} · trial ${plan.trial} of ${plan.trials}`;
+  }
+
   let lastTrial = null;
   function promptAfterTrial(study) { // a trial ended: remind the experimenter of the questionnaire
     const key = study.last ? study.last.folder : null;
@@ -264,6 +287,6 @@ export function setupStudy({ $, page, send, command }) {
   const baseUpdate = update;
   return {
     onScene(message) { baseScene(message); buildForms(message.questionnaires); },
-    update(state) { baseUpdate(state); if (state.study) promptAfterTrial(state.study); },
+    update(state) { baseUpdate(state); if (state.study) { promptAfterTrial(state.study); showPlan(state.study); } },
   };
 }
