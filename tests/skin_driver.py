@@ -38,7 +38,7 @@ GESTURE_FOR = {
 # swipe directions on the canvas (fractions of its width and height; y grows downward)
 SWIPES = {"up": ((0.5, 0.8), (0.5, 0.25)), "down": ((0.5, 0.2), (0.5, 0.75)),
           "right": ((0.2, 0.5), (0.75, 0.5)), "left": ((0.8, 0.5), (0.25, 0.5))}  # fmt: skip
-NUDGE_SPEED = 0.25  # the page's speed slider while nudging
+NUDGE_SPEED = 0.15  # the page's speed slider while nudging
 
 
 class SkinDriver:
@@ -52,6 +52,7 @@ class SkinDriver:
         self.log = log
         self.gesture: str | None = None
         self.attempts: list[tuple[str, list[str]]] = []  # (wanted, commands seen) per touch
+        self.lifts: list[tuple[float, float | None, str | None]] = []  # wall, session t, cmd
 
     # -- the Driver protocol
 
@@ -178,7 +179,10 @@ class SkinDriver:
         self.page.mouse.move(*self._circle_point(self._angle))
 
     def _lift(self) -> None:
+        state = self.view.state()
         self.page.mouse.up()
+        command = state.get("recognition", {}).get("command")
+        self.lifts.append((time.monotonic(), state.get("t"), command))  # for failure reports
         self.gesture = None
 
     def _speed(self, value: float) -> None:
