@@ -29,6 +29,9 @@ or -1.  A driver whose interface works in another frame (the keyboard's and the 
 gestures act in the tool frame) picks the command whose axis best matches, from the TCP's
 axes in :meth:`ServerView.tool_axes`.  ``nudge`` may move more or less than ``amount``
 (a tap, a step of the pendant's nearest increment): the operator measures and repeats.
+A driver whose nudges move exactly ``amount`` or less (a pendant's steps) sets
+``exact_nudges = True``; otherwise the operator learns how far a nudge goes and asks for
+more or less (a short key tap moves less than its length at full speed: the twist ramps).
 ``press``, ``nudge`` and ``gripper`` return how many commands they sent (the session counts
 every press, step, panel setting and toggle; a release is none): the operator waits until
 the server has counted them before it waits for the arm to come to rest.
@@ -107,6 +110,17 @@ class ServerView:
                 raise OperatorError(f"timed out after {timeout_s} s waiting for {what}")
             time.sleep(0.02)
 
+    def live(self, state: dict) -> dict:
+        """``state`` with the robot's TCP as the session has it now: its robot state is
+        replaced every control tick, the published state only between batches of ticks."""
+        robot = self.runner.session.state.robot
+        if robot is None:
+            return state
+        rotation = robot.tcp.rotation()
+        tcp = {"pos": list(robot.tcp.position), "x_axis": list(rotation[:, 0]),
+               "z_axis": list(rotation[:, 2])}  # fmt: skip
+        return {**state, "robot": {**state["robot"], "tcp": tcp}}
+
     def tcp(self, state: dict | None = None) -> np.ndarray:
         return np.array((state or self.state())["robot"]["tcp"]["pos"])
 
@@ -151,6 +165,8 @@ class Operator:
         self.accel = {"linear": settings.linear_accel, "angular": settings.angular_accel}
         self.log = log
         self.moves = 0
+        self.started = time.monotonic()
+        self.gain: dict[str, float] = {}  # per kind: how much more to ask of a nudge
 
     # -- one axis, closed loop
 
@@ -162,6 +178,8 @@ class Operator:
         still = {"n": 0}
 
         def quiet(s: dict) -> bool:
+            if s["safety"]["stopped"]:
+                raise OperatorError(f"the robot stopped: {s['safety']['stops'][-1:]}")
             ok = s["teleop"]["held"] is None and not s["robot"]["moving"]
             ok = ok and s["robot"]["tcp_speed"] < 5e-4
             still["n"] = still["n"] + 1 if ok else 0
@@ -189,35 +207,64 @@ class Operator:
             sign = 1 if e > 0 else -1
             before = self.view.commands(state)
             self.moves += 1
-            self.log(f"{state['t']:7.2f} s  {axis} {e:+.4f}")
-            if abs(e) > 2.5 * brake:
+            self.log(f"{time.monotonic() - self.started:7.2f} s  {axis} {e:+.4f}")
+            if abs(e) > 1.5 * brake:
                 sent = self.driver.press(axis, sign)
                 try:
                     self._sent(before + sent)
-                    self._hold(axis, lambda s, k=sign: k * float(error(s)), brake, v, timeout_s)
+                    self._hold(axis, sign, error, brake, v, timeout_s)
                 finally:
                     self.driver.release()
-            else:
-                self._sent(before + self.driver.nudge(axis, sign, abs(e)))
+                state = self.settle()
+                continue
+            exact = getattr(self.driver, "exact_nudges", False)
+            gain = 1.0 if exact else self.gain.get(kind, 1.0)
+            asked = min(abs(e) * gain, abs(e) + 0.1 * brake, 2 * brake)  # bounded overshoot
+            self._sent(before + self.driver.nudge(axis, sign, asked))
             state = self.settle()
+            done = sign * (e - float(error(state)))  # the way made toward the goal
+            if not exact:  # learn how far a nudge goes: ask for more (less) next time
+                change = abs(e) / done if done > 1e-6 else 2.0
+                self.gain[kind] = float(np.clip(gain * np.clip(change, 0.7, 1.4), 0.5, 3.0))
 
-    def _hold(self, axis: str, remaining, brake: float, speed: float, timeout_s: float) -> None:
+    def _hold(self, axis: str, sign: int, error, brake: float, speed: float, timeout_s) -> None:
         """Keep the press until the goal is within braking distance plus the way the arm
-        goes before the release takes effect: on a loaded machine the session runs its
-        ticks in batches (it catches up with the clock), so the next state may come a
-        batch later; the margin grows with the largest session-time jump seen."""
+        goes before the release takes effect.  On a loaded machine the session runs its
+        ticks in batches (it catches up with the clock) and publishes only between them,
+        so the published state may be a second or more old while the arm moves: the
+        remaining way is the published one less what the arm's TCP has moved since, read
+        from the session's robot state (replaced every tick) on the server."""
         deadline = time.monotonic() + timeout_s
-        last_t, jump = None, 0.0
         while time.monotonic() < deadline:
             state = self.view.state()
-            t = float(state["t"])
-            if last_t is not None and t > last_t:
-                jump = max(jump, t - last_t)
-            last_t = t
-            if remaining(state) <= brake + speed * max(0.1, 1.5 * jump):
+            moved = self._measure(axis, self.view.live(state)) - self._measure(axis, state)
+            if axis in ROTATIONS:
+                moved = wrap(moved)
+            if sign * (float(error(state)) - moved) <= brake:
                 return
             time.sleep(0.01)
         raise OperatorError(f"{axis}: the goal did not come near in {timeout_s} s")
+
+    def _measure(self, axis: str, state: dict) -> float:
+        """The TCP's coordinate (m) or angle (rad) along ``axis`` in ``state``."""
+        if axis in TRANSLATIONS:
+            return float(self.view.tcp(state)[TRANSLATIONS.index(axis)])
+        if axis == "rx":
+            return self.tilt(state)
+        if axis == "rz":
+            return self.closing_angle(state)
+        raise OperatorError(f"no measure of {axis}")
+
+    def align_xy(self, error, tol: float, passes: int = 4) -> None:
+        """Bring both ``error(state)[0]`` (x) and ``[1]`` (y) within ``tol``: y then x,
+        again while one drifted (an interface in the tool frame moves along the tool's
+        axes, which a turned gripper has off the base's)."""
+        for _ in range(passes):
+            for i, axis in ((1, "y"), (0, "x")):
+                self.align(axis, lambda s, i=i: error(s)[i], tol)
+            if np.all(np.abs(error(self.settle())[:2]) <= tol):
+                return
+        raise OperatorError(f"x, y: error {error(self.view.state())[:2]} > {tol}")
 
     def move_tcp(self, axis: str, goal: float, tol: float = 0.002) -> None:
         i = TRANSLATIONS.index(axis)
@@ -256,10 +303,11 @@ class Operator:
 
     # -- pick and place
 
-    def pick_place(self, travel_z: float = 0.075, grasp_z: float = 0.027, shapes=SHAPES) -> None:
+    def pick_place(self, travel_z: float = 0.062, grasp_z: float = 0.027, shapes=SHAPES) -> None:
         """Seat every shape in its mold (the order along the rows), retrying a shape
-        that did not seat (a person picks it up again)."""
-        self.move_tcp("z", travel_z, 0.004)
+        that did not seat (a person picks it up again).  ``travel_z``: the TCP's height
+        while moving over the table (fingertips 10 mm above the tallest shape, a held
+        shape's base above the molds' walls); ``grasp_z``: the fingertips' when grasping."""
         for shape in shapes:
             for attempt in range(3):
                 self._carry(shape, travel_z, grasp_z)
@@ -282,41 +330,36 @@ class Operator:
     def _carry(self, shape, travel_z: float, grasp_z: float) -> None:
         name = shape.name
         obj = lambda s: self._object(name, s)  # noqa: E731 - a short reader
+        tcp = self.view.tcp
         state = self.settle()
-        if self.view.tcp(state)[2] < travel_z - 0.005:
-            self.move_tcp("z", travel_z, 0.004)
-        # above the object; the closing axis along one of its face normals
-        for i, axis in ((1, "y"), (0, "x")):
-            self.align(axis, lambda s, i=i: obj(s)[0][i] - self.view.tcp(s)[i], 0.004)
+        if abs(tcp(state)[2] - travel_z) > 0.006:
+            self.move_tcp("z", travel_z, 0.006)
+        # above the object (the open fingers leave 20 mm either side), the closing axis
+        # along one of its face normals (a turn about the TCP: it stays above the object)
+        self.align_xy(lambda s: obj(s)[0] - tcp(s), 0.005)
         if shape.symmetry is not None:
             period = math.pi / 3 if shape.sides == 3 else shape.symmetry
             self.align(
-                "rz",
-                lambda s: wrap(obj(s)[1] - self.closing_angle(s), period),
-                math.radians(3),
+                "rz", lambda s: wrap(obj(s)[1] - self.closing_angle(s), period), math.radians(4)
             )
-        for i, axis in ((1, "y"), (0, "x")):
-            self.align(axis, lambda s, i=i: obj(s)[0][i] - self.view.tcp(s)[i], 0.003)
-        self.move_tcp("z", grasp_z, 0.003)
+        self.move_tcp("z", grasp_z, 0.004)
         self.gripper(True)
         self._report(name, "grasped")
-        self.move_tcp("z", grasp_z + 0.05, 0.004)  # the base 35 mm up: above mold walls
+        self.move_tcp("z", travel_z, 0.006)  # its base above the molds' walls
         mold = np.array([ROW_X[SHAPES.index(shape)], MOLD_Y])
-        for i, axis in ((1, "y"), (0, "x")):
-            self.align(axis, lambda s, i=i: mold[i] - obj(s)[0][i], 0.004)
+        self.align_xy(lambda s: mold - obj(s)[0][:2], 0.006)
         if shape.symmetry is not None:
-            self.align("rz", lambda s: -wrap(obj(s)[1], shape.symmetry), math.radians(2.5))
-        for i, axis in ((1, "y"), (0, "x")):
-            self.align(axis, lambda s, i=i: mold[i] - obj(s)[0][i], 0.0015)
+            self.align("rz", lambda s: -wrap(obj(s)[1], shape.symmetry), math.radians(2))
+        self.align_xy(lambda s: mold - obj(s)[0][:2], 0.0018)  # the pocket's clearance: 3 mm
         # down until the base is 3 mm above the table, the fingertips above the mold's
         # walls (a finger beside the object stands over the wall), open
         state = self.settle()
         drop = obj(state)[0][2] - (shape.height / 2 + 0.003)
-        self.move_tcp("z", max(self.view.tcp(state)[2] - drop, MOLD_HEIGHT + 0.004), 0.002)
+        self.move_tcp("z", max(tcp(state)[2] - drop, MOLD_HEIGHT + 0.006), 0.003)
         self._report(name, "lowered")
         self.gripper(False)
         self._report(name, "released")
-        self.move_tcp("z", travel_z, 0.004)
+        self.move_tcp("z", travel_z, 0.006)
 
     def _report(self, name: str, what: str) -> None:
         state = self.view.state()
@@ -333,20 +376,22 @@ class Operator:
         """Grasp the cup low, carry it over the container, tilt it about base +x (its rim
         toward -y) until it is empty, and hold it there."""
         cup = lambda s: np.array(self.view.geom("cup_bottom", s)[:3])  # noqa: E731
-        self.move_tcp("z", carry_z, 0.005)
-        for i, axis in ((1, "y"), (0, "x")):
-            self.align(axis, lambda s, i=i: cup(s)[i] - self.view.tcp(s)[i], 0.004)
-        self.move_tcp("z", grasp_z, 0.003)
+        self.move_tcp("z", carry_z, 0.01)
+        self.align_xy(lambda s: cup(s) - self.view.tcp(s), 0.004)  # 7 mm each side
+        self.move_tcp("z", grasp_z, 0.004)
         self.gripper(True)
-        self.move_tcp("z", carry_z, 0.005)
+        self.move_tcp("z", carry_z, 0.01)
         goal = np.array([CONTAINER_XY[0], pour_y])
-        for i, axis in ((1, "y"), (0, "x")):
-            self.align(axis, lambda s, i=i: goal[i] - self.view.tcp(s)[i], 0.005)
+        self.align_xy(lambda s: goal - self.view.tcp(s)[:2], 0.01)
         measures = self.view.task_state
         for degrees in (95, 108):  # tip it further if the cup does not empty
             self.align("rx", lambda s, d=degrees: math.radians(d) - self.tilt(s), math.radians(6))
             try:
-                self.view.wait(lambda s: measures(s)["in_cup"] <= 1, 20, "the cup to empty")
+                self.view.wait(
+                    lambda s: measures(s)["in_cup"] <= 1 or measures(s)["succeeded"],
+                    20,
+                    "the cup to empty",
+                )
                 break
             except OperatorError:
                 self.log(f"at {degrees} deg the cup still holds {measures(self.view.state())}")
@@ -384,8 +429,9 @@ class KeyboardDriver(PageDriver):
         from wovenskin.teleop.keyboard import key_map
 
         self.keys = {row.action: row.key for row in key_map(mapping)}
-        self.speed = {"linear": mapping.settings.linear_speed,
-                      "angular": mapping.settings.angular_speed}  # fmt: skip
+        settings = mapping.settings
+        self.speed = {"linear": settings.linear_speed, "angular": settings.angular_speed}
+        self.accel = {"linear": settings.linear_accel, "angular": settings.angular_accel}
         self.held: str | None = None
 
     def key(self, axis: str, sign: int) -> str:
@@ -407,12 +453,15 @@ class KeyboardDriver(PageDriver):
             self.held = None
 
     def nudge(self, axis: str, sign: int, amount: float) -> int:
-        """A tap held about as long as the move takes at full speed (the twist's ramp
-        makes a short tap move less; the operator repeats)."""
+        """A tap as long as a ramped move of ``amount`` takes: accelerate for half the
+        way and brake for the other (``sqrt(amount / accel)``), or ``amount / speed``
+        past full speed."""
         key = self.key(axis, sign)
-        speed = self.speed["angular" if axis in ROTATIONS else "linear"]
+        kind = "angular" if axis in ROTATIONS else "linear"
+        speed, accel = self.speed[kind], self.accel[kind]
+        held = math.sqrt(amount / accel) if amount < speed * speed / accel else amount / speed
         self.page.keyboard.down(key)
-        time.sleep(min(0.3, max(0.03, amount / speed)))
+        time.sleep(min(0.6, max(0.02, held)))
         self.page.keyboard.up(key)
         return 1
 
@@ -426,6 +475,7 @@ class PendantDriver(PageDriver):
     mouse for long moves, step mode (10, 5, 1 mm or deg per click) for short ones."""
 
     interface = "pendant"
+    exact_nudges = True  # a step moves its increment: the operator need not learn a gain
 
     def prepare(self) -> None:
         super().prepare()
