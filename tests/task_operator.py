@@ -235,12 +235,21 @@ class Operator:
         remaining way is the published one less what the arm's TCP has moved since, read
         from the session's robot state (replaced every tick) on the server."""
         deadline = time.monotonic() + timeout_s
+        last, since = None, time.monotonic()
         while time.monotonic() < deadline:
             state = self.view.state()
-            moved = self._measure(axis, self.view.live(state)) - self._measure(axis, state)
+            if state["safety"]["stopped"]:
+                raise OperatorError(f"the robot stopped: {state['safety']['stops'][-1:]}")
+            now = self._measure(axis, self.view.live(state))
+            moved = now - self._measure(axis, state)
             if axis in ROTATIONS:
                 moved = wrap(moved)
             if sign * (float(error(state)) - moved) <= brake:
+                return
+            if last is None or abs(now - last) > 1e-4:
+                last, since = now, time.monotonic()
+            elif time.monotonic() - since > 3.0:  # the press went nowhere: let go, again
+                self.log(f"{axis}: no motion while pressed; released to press again")
                 return
             time.sleep(0.01)
         raise OperatorError(f"{axis}: the goal did not come near in {timeout_s} s")
@@ -501,6 +510,14 @@ class PendantDriver(PageDriver):
             return 0
         self._choose("#jog-step", "off" if size is None else str(size))
         self.step = size
+        # the person sees the panel in that mode before pressing (a page drawing an older
+        # state would set the select back, and a press would then not be held)
+        wanted = "null" if size is None else str(size)
+        self.page.wait_for_function(
+            "window.wovenskin.state.teleop.pendant"
+            f" && window.wovenskin.state.teleop.pendant.step_size === {wanted}",
+            timeout=60000,
+        )
         return 1
 
     def _choose(self, selector: str, value: str) -> None:
