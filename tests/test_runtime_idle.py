@@ -9,7 +9,7 @@ from wovenskin.errors import ConfigError
 from wovenskin.runtime.idle import IdleSkinSource
 from wovenskin.runtime.sources import open_source
 from wovenskin.skin.frames import Frame, SourceEvent
-from wovenskin.skin.source import SkinSource
+from wovenskin.skin.source import MAX_READER_LAG_S, SkinSource
 
 
 def _frames(items):
@@ -42,8 +42,12 @@ def test_real_time_pacing_follows_the_clock():
     now[0] += 0.105
     frames = _frames(source.poll(0.0))
     assert [f.t for f in frames] == pytest.approx([0.01 * i for i in range(1, 11)])
-    now[0] += 0.5
-    assert len(_frames(source.poll(0.0))) == 50
+    now[0] += 0.5  # a reader half a second behind gets at most MAX_READER_LAG_S of frames:
+    late = _frames(source.poll(0.0))  # the stream clock is held back, nothing is skipped
+    assert len(late) == round(MAX_READER_LAG_S * 100.0)
+    assert [f.seq for f in late] == list(range(11, 11 + len(late)))
+    now[0] += 0.05  # then the stream goes on at its pace from there
+    assert len(_frames(source.poll(0.0))) == 5
 
 
 @pytest.mark.parametrize(

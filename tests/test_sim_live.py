@@ -12,10 +12,10 @@ import pytest
 
 from wovenskin.errors import ConfigError
 from wovenskin.runtime.sources import open_source
-from wovenskin.sim.live import MAX_READER_LAG_S, SimulatedSkinSource
+from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.sim.live_touches import Fingertip
 from wovenskin.skin.frames import Frame, SourceEvent
-from wovenskin.skin.source import SkinSource
+from wovenskin.skin.source import MAX_READER_LAG_S, SkinSource
 
 FS = 200.0
 

@@ -23,7 +23,7 @@ from wovenskin.errors import ConfigError
 from wovenskin.settings import from_dict
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ
-from wovenskin.skin.source import DevicelessSource
+from wovenskin.skin.source import MAX_READER_LAG_S, DevicelessSource
 
 FAST_BATCH = 10
 """Most frames one :meth:`IdleSkinSource.poll` returns at ``speed=0``."""
@@ -130,7 +130,12 @@ class IdleSkinSource(DevicelessSource):
         if self.speed == 0:
             return FAST_BATCH
         elapsed = (now - self._wall_start) * self.speed
-        return max(0, int(math.floor(elapsed / self._period)) + 1 - self._next)
+        due = max(0, int(math.floor(elapsed / self._period)) + 1 - self._next)
+        allowed = max(1, int(MAX_READER_LAG_S / self._period))
+        if due > allowed:  # a reader far behind: hold the stream clock back (MAX_READER_LAG_S)
+            self._wall_start += (due - allowed) * self._period / self.speed
+            return allowed
+        return due
 
     def _reading(self) -> np.ndarray:
         jitter = self._rng.normal(0.0, self._noise, self._values.shape).astype(np.float32)

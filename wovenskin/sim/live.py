@@ -41,12 +41,12 @@ from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.sim.stream import INITIAL_IDLE_S, EventScheduler, StreamEvent, parse_request
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
+from wovenskin.skin.source import MAX_READER_LAG_S
 
 _IDLE_CHUNK_S = 0.05  # idle is rendered in small pieces so that requests start promptly
 _PERFORMANCE_CHUNK_S = 0.05  # performances too: a long one rendered at once starved the reader
 _UNPACED_BUFFER_S = 1.0  # speed=0: frames kept ready for the consumer
 _TOUCH_CHUNK_S = 0.01  # outside fingertips are rendered in pieces this long
-MAX_READER_LAG_S = 0.1  # a reader further behind slows the simulated world (see poll)
 
 
 @dataclass

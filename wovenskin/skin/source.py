@@ -38,6 +38,13 @@ class SkinSource(Protocol):
 SOURCE_COMMANDS = ("start", "stop", "recalibrate")
 
 
+MAX_READER_LAG_S = 0.1
+"""A paced source without a device (simulated, idle) delivers at most this much of its
+stream at once: a reader further behind (a session that cannot keep real time) holds the
+stream clock back, so the simulated world runs slower rather than handing the reader
+seconds of frames, in ever larger batches, to act on late."""
+
+
 class DevicelessSource:
     """What every source without a device shares (a replayed file, the idle clock): the
     stats snapshot, device commands accepted and ignored, and closing.  A subclass sets

@@ -92,6 +92,20 @@ export function makeTaskView(THREE, arm, page) {
 
 // ------------------------------------------------------------------ panels and keys
 export function setupStudy({ $, page, send, command }) {
+  // A choice the person just made is not undone by a state that left the server before the
+  // server took it up (a busy session publishes late): the control keeps the chosen value
+  // until the state agrees, or for 5 s.
+  const chosen = new Map(); // element id -> {value, until}
+  for (const id of ["interface", "task", "jog-frame", "jog-step", "jog-speed"]) {
+    $(id).addEventListener("change", () => chosen.set(id, { value: String($(id).value), until: performance.now() + 5000 }));
+  }
+  function show(id, value) { // the server's value, unless the person's newer choice stands
+    const mine = chosen.get(id);
+    if (mine && String(value) !== mine.value && performance.now() < mine.until) return false;
+    chosen.delete(id);
+    if (document.activeElement !== $(id)) $(id).value = value;
+    return true;
+  }
   const keysDown = new Set();
   let jogHeld = false;
   let keyNames = new Set();
@@ -179,20 +193,20 @@ export function setupStudy({ $, page, send, command }) {
   function update(state) {
     const teleop = state.teleop;
     if (!teleop) return;
-    if (document.activeElement !== $("interface")) $("interface").value = teleop.interface;
+    show("interface", teleop.interface);
     $("commands").textContent = `commands ${teleop.commands} · gripper ${teleop.gripper_closed ? "closed" : "open"}${teleop.held ? ` · ${teleop.held}` : ""}`;
     $("commands").dataset.count = String(teleop.commands);
     $("keymap").hidden = teleop.interface !== "keyboard";
     $("pendant").hidden = teleop.interface !== "pendant";
     if (teleop.pendant) {
       const panel = teleop.pendant;
-      if (document.activeElement !== $("jog-frame")) $("jog-frame").value = panel.frame;
-      if (document.activeElement !== $("jog-step")) $("jog-step").value = panel.step_size === null ? "off" : String(panel.step_size);
-      if (document.activeElement !== $("jog-speed")) { $("jog-speed").value = panel.speed_percent; $("jog-speed-value").textContent = `${panel.speed_percent}%`; }
+      show("jog-frame", panel.frame);
+      show("jog-step", panel.step_size === null ? "off" : String(panel.step_size));
+      if (show("jog-speed", panel.speed_percent)) $("jog-speed-value").textContent = `${panel.speed_percent}%`;
       buildAxes(panel);
     }
     const task = state.task;
-    if (document.activeElement !== $("task")) $("task").value = task ? task.name : "none";
+    show("task", task ? task.name : "none");
     const s = task && task.state;
     $("task-state").textContent = !s ? "" : s.task === "pour"
       ? `in cup ${s.in_cup} · delivered ${s.delivered} · spilled ${s.spilled} of ${s.total}${s.succeeded ? " · DONE" : ""}`
