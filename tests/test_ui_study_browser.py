@@ -17,6 +17,7 @@ wall time of every completion is written to ``artifacts/browser/study-timings.js
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from importlib import resources
@@ -24,7 +25,7 @@ from pathlib import Path
 
 import pytest
 from stand_ins import ContactMeans
-from task_operator import KeyboardDriver, Operator, PendantDriver, ServerView
+from task_operator import KeyboardDriver, Operator, OperatorError, PendantDriver, ServerView
 from test_ui_dashboard_browser import SHOTS, _save, browser  # noqa: F401 - the fixture
 
 from wovenskin.runtime.session import open_session
@@ -112,6 +113,15 @@ def _choose_task(page, view: ServerView, task: str) -> None:
     )
 
 
+def _arm_to_initial(page, view: ServerView) -> None:
+    """Before a trial the experimenter sends the arm to its initial pose (the Controls
+    panel's button): the last trial may have left it tilted over the container."""
+    page.evaluate("document.getElementById('initial').click()")  # no wait for a still frame
+    with contextlib.suppress(OperatorError):  # already there: the move ends at once
+        view.wait(lambda s: s["robot"]["moving"], 5, "the arm to start for its initial pose")
+    view.wait(lambda s: not s["robot"]["moving"], 60, "the arm at its initial pose")
+
+
 def _start_trial(page, view: ServerView, task: str, interface: str) -> None:
     page.fill("#participant", PARTICIPANT)
     page.evaluate("document.activeElement.blur()")  # page keys go nowhere while typing
@@ -136,6 +146,7 @@ def test_a_study_trial_completes_the_task(page, dashboard, task, interface) -> N
         driver = KeyboardDriver(page, view, runner.session.mapping)
     else:
         driver = PendantDriver(page, view)
+    _arm_to_initial(page, view)
     driver.prepare()
     _start_trial(page, view, task, interface)
     lines: list[str] = []
