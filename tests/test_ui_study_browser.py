@@ -36,7 +36,8 @@ from wovenskin.study.tables import task_table
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.server import BackgroundServer
 
-pytestmark = pytest.mark.browser  # drives chromium: `make test-fast` leaves it out
+# drives chromium for minutes: `make test-acceptance`, not `make test` or `make test-fast`
+pytestmark = [pytest.mark.browser, pytest.mark.acceptance]
 
 PARTICIPANT = "P01"
 RUNS = [
