@@ -234,6 +234,10 @@ def test_a_trial_from_the_study_panel_writes_its_folder_and_row(tmp_path) -> Non
         assert len(trials) == 1 and problems == []
         assert (study / "trials.csv").read_text().count("\n") == 2  # header and the trial
         assert next_trial(study, "P01", "pick_place", "skin") == 2
+        assert runner.latest()["teleop"]["gripper_closed"]  # the trial ended with it closed
+        _command(runner, cmd="trial", op="start", participant="P01")  # the reset opens it:
+        assert not runner.latest()["teleop"]["gripper_closed"]  # the next toggle closes it
+        _command(runner, cmd="trial", op="abort")
     finally:
         runner.close()
 

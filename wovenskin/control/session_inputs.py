@@ -293,6 +293,11 @@ class SessionInputs:
             goal = goal + np.linalg.lstsq(np.asarray(jacobian(goal), float), error, rcond=None)[0]
         return goal
 
+    def gripper_was_opened(self) -> None:
+        """The gripper was opened outside the inputs (a task scene's reset opens it): the
+        next toggle closes it."""
+        self.gripper_closed = False
+
     def _gripper(self, command: str, t: float) -> None:
         if command not in GRIPPER_COMMANDS:
             raise ConfigError(f"unknown gripper command {command!r}: use toggle, open or close")

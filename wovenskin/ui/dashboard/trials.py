@@ -66,6 +66,7 @@ class StudyPanel:
         )  # fmt: skip
         try:
             task.reset(n)
+            session.gripper_was_opened()  # the reset opened it: a toggle closes it
             runner = TrialRunner(session, task, recorder, time_limit_s=study.time_limit_s)
             runner.start(t)
         except Exception:
