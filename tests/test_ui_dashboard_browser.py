@@ -71,19 +71,30 @@ def dashboard(tmp_path):
     server.stop()
 
 
-@pytest.fixture()
-def page(browser, dashboard):
-    context = browser.new_context(viewport={"width": 1440, "height": 900}, has_touch=True)
+def open_page(browser, url: str, ready: str, timeout_s: float = 30.0, **context):
+    """A page of the dashboard at ``url`` in a new browser context (``context``: Playwright's
+    options), once it has states and ``ready`` holds; ``page.problems`` collects console
+    errors and page errors.  Close it with ``page.context.close()``."""
+    context = browser.new_context(viewport={"width": 1440, "height": 900}, **context)
     page = context.new_page()
     problems: list[str] = []
     page.on("console", lambda m: problems.append(m.text) if m.type == "error" else None)
     page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
-    page.goto(dashboard.url)
-    page.wait_for_function("window.wovenskin && window.wovenskin.received > 3", timeout=20000)
-    page.wait_for_function("!window.wovenskin.state.skin.calibrating", timeout=20000)
+    page.goto(url)
+    timeout = timeout_s * 1000
+    page.wait_for_function("window.wovenskin && window.wovenskin.received > 3", timeout=timeout)
+    page.wait_for_function(ready, timeout=timeout)
     page.problems = problems
+    return page
+
+
+@pytest.fixture()
+def page(browser, dashboard):
+    page = open_page(
+        browser, dashboard.url, "!window.wovenskin.state.skin.calibrating", has_touch=True
+    )
     yield page
-    context.close()
+    page.context.close()
 
 
 def _state(page) -> dict:

@@ -13,7 +13,7 @@ import time
 import numpy as np
 import pytest
 from stand_ins import ContactMeans
-from test_ui_dashboard_browser import _save, _wait_for, browser  # noqa: F401 - the fixture
+from test_ui_dashboard_browser import _save, _wait_for, browser, open_page  # noqa: F401 - the fixture
 
 from wovenskin.runtime.session import open_session
 from wovenskin.study.definition import add_participant, init_study
@@ -48,17 +48,10 @@ def dashboard(tmp_path, study_dir):
 
 @pytest.fixture()
 def page(browser, dashboard):  # noqa: F811 - the browser fixture imported above
-    context = browser.new_context(viewport={"width": 1440, "height": 900})
-    page = context.new_page()
-    problems: list[str] = []
-    page.on("console", lambda m: problems.append(m.text) if m.type == "error" else None)
-    page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
-    page.goto(dashboard.url)
-    page.wait_for_function("window.wovenskin && window.wovenskin.received > 3", timeout=30000)
-    page.wait_for_function("window.wovenskin.task && window.wovenskin.task.moving > 0")
-    page.problems = problems
+    ready = "window.wovenskin.task && window.wovenskin.task.moving > 0"
+    page = open_page(browser, dashboard.url, ready)
     yield page
-    context.close()
+    page.context.close()
 
 
 def _state(page) -> dict:

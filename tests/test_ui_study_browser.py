@@ -26,7 +26,7 @@ from pathlib import Path
 import pytest
 from stand_ins import ContactMeans
 from task_operator import KeyboardDriver, Operator, OperatorError, PendantDriver, ServerView
-from test_ui_dashboard_browser import SHOTS, _save, browser  # noqa: F401 - the fixture
+from test_ui_dashboard_browser import SHOTS, _save, browser, open_page  # noqa: F401 - the fixture
 
 from wovenskin.runtime.session import open_session
 from wovenskin.study.definition import add_participant, init_study
@@ -92,17 +92,10 @@ def dashboard(tmp_path_factory, study_dir):
 
 @pytest.fixture(scope="module")
 def page(browser, dashboard):  # noqa: F811 - the browser fixture imported above
-    context = browser.new_context(viewport={"width": 1440, "height": 900})
-    page = context.new_page()
-    problems: list[str] = []
-    page.on("console", lambda m: problems.append(m.text) if m.type == "error" else None)
-    page.on("pageerror", lambda e: problems.append(f"page error: {e}"))
-    page.goto(dashboard.url)
-    page.wait_for_function("window.wovenskin && window.wovenskin.received > 3", timeout=60000)
-    page.wait_for_function("window.wovenskin.task && window.wovenskin.task.moving > 0")
-    page.problems = problems
+    ready = "window.wovenskin.task && window.wovenskin.task.moving > 0"
+    page = open_page(browser, dashboard.url, ready, timeout_s=60.0)
     yield page
-    context.close()
+    page.context.close()
 
 
 def _choose_task(page, view: ServerView, task: str) -> None:
