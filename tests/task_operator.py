@@ -552,9 +552,17 @@ class PendantDriver(PageDriver):
 
     def press(self, axis: str, sign: int) -> int:
         sent = self._mode(None)
-        self._button(axis, sign)
-        self.page.mouse.down()
-        return sent + 1
+        for _ in range(3):  # a press the panel did not take is pressed again, as people do
+            self._button(axis, sign)
+            self.page.mouse.down()
+            try:
+                self.view.wait(
+                    lambda s: s["teleop"]["pendant"]["jogging"] is not None, 5, "the jog"
+                )
+                return sent + 1
+            except (OperatorError, KeyError, TypeError):
+                self.page.mouse.up()
+        raise OperatorError(f"the {axis} {sign:+d} jog button did not take three presses")
 
     def release(self) -> None:
         self.page.mouse.up()
