@@ -23,7 +23,7 @@ from wovenskin.errors import ConfigError
 from wovenskin.settings import from_dict
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ
-from wovenskin.skin.source import MAX_READER_LAG_S, DevicelessSource
+from wovenskin.skin.source import DevicelessSource, held_back
 
 FAST_BATCH = 10
 """Most frames one :meth:`IdleSkinSource.poll` returns at ``speed=0``."""
@@ -131,11 +131,9 @@ class IdleSkinSource(DevicelessSource):
             return FAST_BATCH
         elapsed = (now - self._wall_start) * self.speed
         due = max(0, int(math.floor(elapsed / self._period)) + 1 - self._next)
-        allowed = max(1, int(MAX_READER_LAG_S / self._period))
-        if due > allowed:  # a reader far behind: hold the stream clock back (MAX_READER_LAG_S)
-            self._wall_start += (due - allowed) * self._period / self.speed
-            return allowed
-        return due
+        now, behind = held_back(due, self.speed / self._period)  # a reader far behind
+        self._wall_start += behind  # holds the stream clock back (MAX_READER_LAG_S)
+        return now
 
     def _reading(self) -> np.ndarray:
         jitter = self._rng.normal(0.0, self._noise, self._values.shape).astype(np.float32)

@@ -41,7 +41,7 @@ from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.sim.stream import INITIAL_IDLE_S, EventScheduler, StreamEvent, parse_request
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
-from wovenskin.skin.source import MAX_READER_LAG_S
+from wovenskin.skin.source import held_back
 
 _IDLE_CHUNK_S = 0.05  # idle is rendered in small pieces so that requests start promptly
 _PERFORMANCE_CHUNK_S = 0.05  # performances too: a long one rendered at once starved the reader
@@ -297,20 +297,18 @@ class SimulatedSkinSource:
         return int(clock * self.speed * self._fs) + 1
 
     def _hold_back(self, due: int) -> int:
-        """``due``, or fewer when the reader is more than :data:`MAX_READER_LAG_S` behind:
+        """``due``, or fewer when the reader is more than
+        :data:`~wovenskin.skin.source.MAX_READER_LAG_S` behind:
         then the stream clock is held back by the excess, so a starved reader (a session
         that cannot keep real time beside a browser) runs the simulated world slower
         instead of receiving seconds of frames at once and acting on touches seconds old
         (a lift-off among them: the arm moved on for as long).  Lock held."""
-        if self.speed == 0 or self._paused:
+        if self.speed == 0 or self._paused or due <= self._delivered:
             return due
-        allowed = self._delivered + max(1, int(MAX_READER_LAG_S * self.speed * self._fs))
-        if due <= allowed:
-            return due
-        behind = (due - allowed) / (self.speed * self._fs)
+        now, behind = held_back(due - self._delivered, self.speed * self._fs)
         self._clock_origin += behind
         self.slowed_s += behind
-        return allowed
+        return self._delivered + now
 
     def _wait_hint(self, now: float) -> float:
         if self.speed == 0 or self._paused:

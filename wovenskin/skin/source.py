@@ -45,6 +45,16 @@ stream clock back, so the simulated world runs slower rather than handing the re
 seconds of frames, in ever larger batches, to act on late."""
 
 
+def held_back(pending: int, frames_per_s: float) -> tuple[int, float]:
+    """Of ``pending`` frames due to a reader (paced at ``frames_per_s`` frames per wall
+    second), the number to deliver now and how many wall seconds to hold the stream clock
+    back: at most :data:`MAX_READER_LAG_S` of frames, the excess becomes slower time."""
+    allowed = max(1, int(MAX_READER_LAG_S * frames_per_s))
+    if pending <= allowed:
+        return pending, 0.0
+    return allowed, (pending - allowed) / frames_per_s
+
+
 class DevicelessSource:
     """What every source without a device shares (a replayed file, the idle clock): the
     stats snapshot, device commands accepted and ignored, and closing.  A subclass sets
