@@ -1,6 +1,8 @@
-"""Stand-ins shared by the tests of the control layer (not collected as tests)."""
+"""Stand-ins and helpers shared by the tests (not collected as tests)."""
 
 from __future__ import annotations
+
+import time
 
 import numpy as np
 
@@ -26,3 +28,14 @@ class ContactMeans:
         out = np.zeros((len(windows), len(CLASS_NAMES)), dtype=np.float32)
         out[:, CLASS_NAMES.index(self.gesture)] = 1.0
         return out
+
+
+def wait_until(predicate, timeout: float = 20.0) -> bool:
+    """Whether ``predicate()`` becomes true within ``timeout`` s (polled every 20 ms): a
+    generous upper bound on a live session, so a loaded machine slows a test, never fails it."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return False

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from stand_ins import ContactMeans
+from stand_ins import wait_until as _wait
 from starlette.websockets import WebSocketDisconnect
 
 from wovenskin.gestures import CLASS_NAMES
@@ -103,15 +104,6 @@ def _opener(tmp_path, gesture: str = "swipe_up"):
         )
 
     return opener
-
-
-def _wait(predicate, timeout: float = 15.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return False
 
 
 @pytest.fixture()

@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 from stand_ins import ContactMeans
+from stand_ins import wait_until as _wait
 
 from wovenskin.runtime.session import open_session
 from wovenskin.study.definition import add_participant, init_study
@@ -30,15 +31,6 @@ def _opener(tmp_path):
         )  # fmt: skip
 
     return opener
-
-
-def _wait(predicate, timeout: float = 20.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return False
 
 
 def _runner(tmp_path, task: str | None = "pick_place", **kwargs) -> DashboardRunner:
