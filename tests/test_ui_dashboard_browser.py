@@ -143,6 +143,56 @@ class TouchScreen:
         self._send("touchEnd", [])
 
 
+class HardwareMouse:
+    """A mouse that samples its path on its own clock, as a real one does (Chrome DevTools
+    mouse events carrying their sample times).
+
+    Playwright's ``page.mouse.move`` makes one event per round trip, stamped when the page
+    takes it: when a busy page stalls for 300 ms the path it sees rests, then jumps.  A
+    USB mouse keeps sampling through the stall and the browser hands the page the missed
+    samples, each with its own time, as coalesced events.  This driver does the same: each
+    step sends the samples of the time since its last one (at least ``SPACING_S`` apart, at
+    most ``MAX_CATCH_UP`` of them), stamped with their times on the path."""
+
+    SPACING_S = 0.008  # a 125 Hz USB mouse
+    MAX_CATCH_UP = 3
+
+    def __init__(self, page) -> None:
+        self.cdp = page.context.new_cdp_session(page)
+        self.last_t: float | None = None
+
+    def _event(self, kind: str, xy: tuple[float, float], t: float, buttons: int) -> None:
+        event = {"type": kind, "x": xy[0], "y": xy[1], "timestamp": t, "buttons": buttons}
+        if kind != "mouseMoved" or buttons:
+            event.update(button="left", clickCount=1 if kind != "mouseMoved" else 0)
+        self.cdp.send("Input.dispatchMouseEvent", event)
+
+    def down(self, path) -> None:
+        """Press the button where ``path(0)`` (page pixels) is; ``path(s)`` is where the
+        hand is ``s`` seconds after the press."""
+        self.path, self.t0 = path, time.time()
+        self._event("mouseMoved", path(0.0), self.t0, 0)
+        self._event("mousePressed", path(0.0), self.t0, 1)
+        self.last_t = self.t0
+
+    def step(self) -> None:
+        """Send the samples of the path since the last step (the newest at the present)."""
+        assert self.last_t is not None, "press first"
+        now = time.time()
+        count = min(self.MAX_CATCH_UP, int((now - self.last_t) / self.SPACING_S))
+        for k in range(1, count + 1):
+            t = self.last_t + (now - self.last_t) * k / count
+            self._event("mouseMoved", self.path(t - self.t0), t, 1)
+        if count:
+            self.last_t = now
+
+    def up(self) -> None:
+        assert self.last_t is not None, "press first"
+        now = time.time()
+        self._event("mouseReleased", self.path(now - self.t0), now, 0)
+        self.last_t = None
+
+
 def _wait_for(page, expression: str, timeout_s: float) -> bool:
     """Whether ``expression`` becomes true within ``timeout_s``: a generous upper bound, so
     that a loaded machine (the page renders WebGL on the CPU) slows the test, never fails it."""
@@ -345,28 +395,23 @@ def test_a_mouse_hand_of_two_traces_a_clockwise_circle(page, dashboard) -> None:
     page.select_option("#fingers", "2")
     cx, cy = _centre(page)
     radius = 18.0 * page.locator("#skin").bounding_box()["width"] / 100.0  # 18 mm
-    # The hand keeps circling (0.6 s a turn where the driver keeps up) until the circle is
-    # recognised or 4 s pass: on a loaded machine the page may see few of the moves, and a
-    # hand that stops circling is resting, not circling.  The circle's first 150 ms look
+    # The hand keeps circling (0.6 s a turn, sampled as a real mouse samples it: see
+    # HardwareMouse) until the circle is recognised or 4 s pass: a hand that stops circling
+    # is resting, not circling.  The circle's first 150 ms look
     # like a two-finger swipe along its tangent; the execution rules let the circle, being
     # performed, take over from such a first command (one switch per touch).  A person who
     # is not understood lifts and draws again: up to three touches.
     touches: list[list[str]] = []
+    mouse = HardwareMouse(page)
     for _ in range(3):
         seen: list[str] = []
         touches.append(seen)
-        page.mouse.move(cx + radius, cy)
-        page.mouse.down()
-        started = last_poll = last_move = time.monotonic()
-        angle = 0.0
+        # y grows downward: a growing angle turns clockwise
+        mouse.down(lambda s: (cx + radius * math.cos(2 * math.pi * s / 0.6),
+                              cy + radius * math.sin(2 * math.pi * s / 0.6)))  # fmt: skip
+        started = last_poll = time.monotonic()
         while time.monotonic() - started < 4.0:
-            # 0.6 s a turn by the clock, but never more than 40 deg a move: a driver slowed
-            # by a loaded machine draws a slower circle, never an aliased one (a 210 deg
-            # step reads as 150 deg the other way: a counterclockwise circle)
-            now = time.monotonic()
-            angle += min(2 * math.pi * (now - last_move) / 0.6, math.radians(40))
-            last_move = now  # y grows downward: a growing angle turns clockwise
-            page.mouse.move(cx + radius * math.cos(angle), cy + radius * math.sin(angle))
+            mouse.step()
             if time.monotonic() - last_poll > 0.1:
                 last_poll = time.monotonic()
                 command = _server_command(dashboard)
@@ -374,7 +419,7 @@ def test_a_mouse_hand_of_two_traces_a_clockwise_circle(page, dashboard) -> None:
                     seen.append(command)
                 if command == "circle_cw_2f":
                     break
-        page.mouse.up()
+        mouse.up()
         if "circle_cw_2f" in seen:
             break
         assert _server_wait(dashboard, lambda s: not s["recognition"]["command"], 10.0)

@@ -294,7 +294,17 @@ function touchList() {
 
 // Each message carries the events' own times (seconds on the page's clock): the server
 // plays the samples at that spacing, so a busy page or network cannot distort a gesture.
-function sendTouches(samples) { send({ type: "touch", samples }); }
+// The samples leave in time order: pointer events carry the times the device sampled them,
+// the heartbeat and the press ramp the page's clock, and a busy page can run a timer before
+// it hands over input sampled earlier; such a sample goes at the newest time already sent
+// (played at once) rather than back in time.
+let sentT = -Infinity; // the newest sample time sent (s, page clock)
+let sentAt = 0; // performance.now() when a sample was last sent
+function sendTouches(samples) {
+  for (const s of samples) { s.t = Math.max(s.t, sentT); sentT = s.t; }
+  sentAt = performance.now();
+  send({ type: "touch", samples });
+}
 const sample = (event) => ({ t: event.timeStamp / 1000, touches: touchList() });
 
 skinCanvas.addEventListener("pointerdown", (event) => {
@@ -334,9 +344,11 @@ function liftAll() { // the page loses the pointer (another window, hidden tab):
 }
 // Hold-to-run heartbeat: while fingers rest without moving the page repeats them, so the
 // server can tell a resting finger from a page that stopped talking (it lifts after 1 s).
+// Only after 250 ms without a sample: a moving hand's own samples say it is there.
 setInterval(() => {
-  if (pointers.size) sendTouches([{ t: performance.now() / 1000, touches: touchList() }]);
-}, 250);
+  if (!pointers.size || performance.now() - sentAt < 250) return;
+  sendTouches([{ t: performance.now() / 1000, touches: touchList() }]);
+}, 50);
 window.addEventListener("blur", liftAll);
 document.addEventListener("visibilitychange", () => { if (document.hidden) liftAll(); });
 skinCanvas.addEventListener("wheel", (event) => { // hovering: spread the hand; pressing: pinch
