@@ -7,9 +7,10 @@ the tool's y or z, ``push`` / ``pinch_in_2f`` along its x, a two-finger swipe fo
 about its y or z, a two-finger circle about its x.  ``press`` draws the gesture and keeps
 the fingers resting on the skin (the command runs until lift-off), ``release`` lifts them,
 ``nudge`` lifts as soon as the command starts, at a lower speed (the page's speed slider,
-as a person slows down for the last millimetres).  Like a person who is not understood,
-the driver lifts and draws again when the recogniser gives nothing, or gives another
-command (lifted at once: the operator measures and corrects), up to three times.
+set for the way asked, as a person slows down for the last millimetres).  Like a person
+who is not understood, the driver lifts and draws again when the recogniser gives
+nothing, or gives another command (lifted at once: the operator measures and corrects),
+up to three times.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import math
 import time
 
 import numpy as np
+from hardware_mouse import HardwareMouse
 from task_operator import ROTATIONS, TRANSLATIONS, OperatorError, ServerView
 
 # (action kind, tool axis index, sign) -> gesture, as in control/default_mapping.toml
@@ -38,7 +40,8 @@ GESTURE_FOR = {
 # swipe directions on the canvas (fractions of its width and height; y grows downward)
 SWIPES = {"up": ((0.5, 0.8), (0.5, 0.25)), "down": ((0.5, 0.2), (0.5, 0.75)),
           "right": ((0.2, 0.5), (0.75, 0.5)), "left": ((0.8, 0.5), (0.25, 0.5))}  # fmt: skip
-NUDGE_SPEED = 0.15  # the page's speed slider while nudging
+SWIPE_S = 0.4  # 140-190 mm/s on average (docs/gestures.md: 70-250 mm/s)
+NUDGE_RUN_S = 0.35  # how long a nudge's command runs: the dwell's end to the lift's effect
 
 
 class SkinDriver:
@@ -53,6 +56,12 @@ class SkinDriver:
         self.gesture: str | None = None
         self.attempts: list[tuple[str, list[str]]] = []  # (wanted, commands seen) per touch
         self.lifts: list[tuple[float, float | None, str | None]] = []  # wall, session t, cmd
+        self.mouse = HardwareMouse(page)  # swipes and circles: sampled on its own clock
+        self.box: dict | None = None
+        self.timings: list[tuple[str, float, float]] = []  # gesture, s to land, s to command
+        self.fingers: int | None = None  # the page's hand, as this driver last chose it
+        settings = runner.session.mapping.settings
+        self.speed = {"linear": settings.linear_speed, "angular": settings.angular_speed}
 
     # -- the Driver protocol
 
@@ -69,7 +78,10 @@ class SkinDriver:
         self._lift()
 
     def nudge(self, axis: str, sign: int, amount: float) -> int:
-        self._speed(NUDGE_SPEED)
+        """A gesture lifted as soon as it acts, at the speed (the page's slider: 5-100 %
+        in 5 % steps) at which it would go ``amount`` in :data:`NUDGE_RUN_S`."""
+        speed = self.speed["angular" if axis in ROTATIONS else "linear"]
+        self._speed(float(np.clip(round(amount / (speed * NUDGE_RUN_S) * 20) / 20, 0.05, 1.0)))
         try:
             self._perform(self._gesture(axis, sign))
         finally:
@@ -80,6 +92,10 @@ class SkinDriver:
     def gripper(self) -> int:
         self.page.click("#gripper")
         return 1
+
+    def misread(self) -> list[tuple[str, list[str]]]:
+        """The touches whose commands were not just the gesture drawn: (wanted, seen)."""
+        return [(wanted, seen) for wanted, seen in self.attempts if seen != [wanted]]
 
     # -- gestures
 
@@ -99,7 +115,9 @@ class SkinDriver:
         for _ in range(3):
             seen: list[str] = []
             self.attempts.append((gesture, seen))
+            started = time.monotonic()
             self._draw(gesture)
+            drawn = time.monotonic() - started
             deadline = time.monotonic() + 3.0
             while time.monotonic() < deadline:
                 command = self.view.state().get("recognition", {}).get("command")
@@ -107,40 +125,51 @@ class SkinDriver:
                     seen.append(command)
                 if command == gesture:
                     self.gesture = gesture
+                    self.timings.append((gesture, drawn, time.monotonic() - started))
                     return
                 if command and command != gesture:
                     break  # understood as something else: lift at once, draw again
-                if gesture.startswith("circle"):
-                    self._circle_step(gesture)
-                else:
-                    time.sleep(0.03)
+                if self.mouse.pressed:
+                    self.mouse.step()
+                time.sleep(0.01)
             self._lift()
             self.view.wait(lambda s: not s["recognition"]["command"], 15, "no command")
         raise OperatorError(f"{gesture} not recognised in three touches: {self.attempts[-3:]}")
 
     def _box(self) -> dict:
-        return self.page.locator("#skin").bounding_box()
+        """The skin canvas's box (read once: every read is a round trip to a busy page)."""
+        if self.box is None:
+            self.box = self.page.locator("#skin").bounding_box()
+        return self.box
 
     def _at(self, fx: float, fy: float) -> tuple[float, float]:
         box = self._box()
         return box["x"] + box["width"] * fx, box["y"] + box["height"] * fy
 
     def _fingers(self, n: int) -> None:
-        if self.page.eval_on_selector("#fingers", "e => e.value") != str(n):
-            self.page.select_option("#fingers", str(n))
+        """Choose the mouse hand's fingers (in one script: ``select_option`` waits for a
+        stable frame, a second or more on a page drawing its 3D view on the CPU)."""
+        if self.fingers != n:
+            self.page.evaluate(
+                "(n) => { const s = document.getElementById('fingers'); s.value = String(n);"
+                " s.dispatchEvent(new Event('change')); }",
+                n,
+            )
+            self.fingers = n
 
     def _draw(self, gesture: str) -> None:
         mouse = self.page.mouse
-        if gesture.startswith("swipe"):
+        if gesture.startswith("swipe"):  # 55-77 mm in 0.4 s, bell-shaped, then a rest
             direction = gesture.split("_")[1]
             self._fingers(2 if gesture.endswith("_2f") else 1)
-            (x0, y0), (x1, y1) = SWIPES[direction]
-            mouse.move(*self._at(x0, y0))
-            mouse.down()
-            for k in range(1, 16):  # ~40 mm in ~0.2 s, then the fingers rest
-                f = k / 15
-                mouse.move(*self._at(x0 + (x1 - x0) * f, y0 + (y1 - y0) * f))
-                time.sleep(0.012)
+            (x0, y0), (x1, y1) = (self._at(*end) for end in SWIPES[direction])
+
+            def swipe(s: float) -> tuple[float, float]:
+                u = min(s / SWIPE_S, 1.0)
+                f = u * u * (3 - 2 * u)  # smoothstep: the speed peaks mid-way
+                return x0 + (x1 - x0) * f, y0 + (y1 - y0) * f
+
+            self.mouse.down(swipe)
         elif gesture == "push":
             self._fingers(1)
             mouse.move(*self._at(0.5, 0.5))
@@ -157,30 +186,21 @@ class SkinDriver:
             for _ in range(16):  # pressing: bring the fingertips together
                 mouse.wheel(0, 100)
                 time.sleep(0.015)
-        elif gesture.startswith("circle"):
+        elif gesture.startswith("circle"):  # 0.6 s a turn (y grows downward: cw)
             self._fingers(2)
-            self._angle, self._last = 0.0, time.monotonic()
-            mouse.move(*self._circle_point(0.0))
-            mouse.down()
+            rate = (1.0 if gesture == "circle_cw_2f" else -1.0) * 2 * math.pi / 0.6
+            cx, cy = self._at(0.5, 0.5)
+            r = 0.18 * self._box()["width"]  # 18 mm of the 100 mm skin
+            self.mouse.down(lambda s: (cx + r * math.cos(rate * s), cy + r * math.sin(rate * s)))
         else:
             raise OperatorError(f"the skin driver cannot draw {gesture}")
 
-    def _circle_point(self, angle: float) -> tuple[float, float]:
-        r = 0.18  # 18 mm of the 100 mm skin
-        return self._at(0.5 + r * math.cos(angle), 0.5 + r * math.sin(angle))
-
-    def _circle_step(self, gesture: str) -> None:
-        """One move of a circle (0.6 s a turn, at most 40 deg a move: never aliased); y
-        grows downward on the canvas, so a growing angle turns clockwise."""
-        now = time.monotonic()
-        step = min(2 * math.pi * (now - self._last) / 0.6, math.radians(40))
-        self._last = now
-        self._angle += step if gesture == "circle_cw_2f" else -step
-        self.page.mouse.move(*self._circle_point(self._angle))
-
     def _lift(self) -> None:
         state = self.view.state()
-        self.page.mouse.up()
+        if self.mouse.pressed:
+            self.mouse.up()
+        else:
+            self.page.mouse.up()
         command = state.get("recognition", {}).get("command")
         self.lifts.append((time.monotonic(), state.get("t"), command))  # for failure reports
         self.gesture = None

@@ -75,6 +75,10 @@ class OperatorError(AssertionError):
     """The operator could not do a step (a test failure with what it saw)."""
 
 
+class Missed(Exception):
+    """A grasp did not hold the object (pushed aside, or not lifted): try it again."""
+
+
 def wrap(angle: float, period: float = 2 * math.pi) -> float:
     """``angle`` into ``[-period/2, period/2)``."""
     return (angle + period / 2) % period - period / 2
@@ -167,6 +171,8 @@ class Operator:
         self.moves = 0
         self.started = time.monotonic()
         self.gain: dict[str, float] = {}  # per kind: how much more to ask of a nudge
+        self.lead: dict[str, float] = {}  # per kind: how much earlier (s) to let go a press
+        self.stuck = 0  # presses in a row that went nowhere
 
     # -- one axis, closed loop
 
@@ -195,10 +201,12 @@ class Operator:
         the axis's direction (m or rad), read from the server's state."""
         kind = self._kind(axis)
         v, a = self.speed[kind], self.accel[kind]
-        brake = v * v / (2 * a) + v * 0.12  # shaped stop plus the release's way to the server
         deadline = time.monotonic() + timeout_s
         state = self.settle()
         while True:
+            # the shaped stop, the release's way to the server, and what this operator has
+            # learnt of how late its releases take effect with this interface
+            brake = v * v / (2 * a) + v * (0.12 + self.lead.get(kind, 0.0))
             e = float(error(state))
             if abs(e) <= tol:
                 return
@@ -212,10 +220,14 @@ class Operator:
                 sent = self.driver.press(axis, sign)
                 try:
                     self._sent(before + sent)
-                    self._hold(axis, sign, error, brake, v, timeout_s)
+                    stuck = self._hold(axis, sign, error, brake, v, timeout_s)
                 finally:
                     self.driver.release()
                 state = self.settle()
+                if not stuck:  # learn from where the arm stopped: let go earlier or later
+                    past = -sign * float(error(state))  # > 0: beyond the goal
+                    lead = self.lead.get(kind, 0.0) + (past if past > 0 else 0.5 * past) / v
+                    self.lead[kind] = float(np.clip(lead, 0.0, 2.0))
                 continue
             exact = getattr(self.driver, "exact_nudges", False)
             gain = 1.0 if exact else self.gain.get(kind, 1.0)
@@ -227,13 +239,15 @@ class Operator:
                 change = abs(e) / done if done > 1e-6 else 2.0
                 self.gain[kind] = float(np.clip(gain * np.clip(change, 0.7, 1.4), 0.5, 3.0))
 
-    def _hold(self, axis: str, sign: int, error, brake: float, speed: float, timeout_s) -> None:
+    def _hold(self, axis: str, sign: int, error, brake: float, speed: float, timeout_s) -> bool:
         """Keep the press until the goal is within braking distance plus the way the arm
         goes before the release takes effect.  On a loaded machine the session runs its
         ticks in batches (it catches up with the clock) and publishes only between them,
         so the published state may be a second or more old while the arm moves: the
         remaining way is the published one less what the arm's TCP has moved since, read
-        from the session's robot state (replaced every tick) on the server."""
+        from the session's robot state (replaced every tick) on the server.  Returns
+        whether the press went nowhere (held back); OperatorError, with the safety layer's
+        reasons, when that happens three presses in a row."""
         deadline = time.monotonic() + timeout_s
         last, since = None, time.monotonic()
         while time.monotonic() < deadline:
@@ -245,12 +259,17 @@ class Operator:
             if axis in ROTATIONS:
                 moved = wrap(moved)
             if sign * (float(error(state)) - moved) <= brake:
-                return
+                self.stuck = 0
+                return False
             if last is None or abs(now - last) > 1e-4:
                 last, since = now, time.monotonic()
             elif time.monotonic() - since > 3.0:  # the press went nowhere: let go, again
-                self.log(f"{axis}: no motion while pressed; released to press again")
-                return
+                held = state.get("safety", {}).get("holding") or []
+                self.stuck += 1
+                self.log(f"{axis}: no motion while pressed (held back: {held}); let go")
+                if self.stuck >= 3:
+                    raise OperatorError(f"{axis}: held back three presses in a row: {held}")
+                return True
             time.sleep(0.01)
         raise OperatorError(f"{axis}: the goal did not come near in {timeout_s} s")
 
@@ -319,7 +338,11 @@ class Operator:
         shape's base above the molds' walls); ``grasp_z``: the fingertips' when grasping."""
         for shape in shapes:
             for attempt in range(3):
-                self._carry(shape, travel_z, grasp_z)
+                try:
+                    self._carry(shape, travel_z, grasp_z)
+                except Missed as missed:
+                    self.log(f"{shape.name}: {missed} (attempt {attempt + 1})")
+                    continue
                 seated = self._seated(shape.name)
                 self.log(f"{shape.name}: seated {seated} (attempt {attempt + 1})")
                 if seated:
@@ -351,10 +374,18 @@ class Operator:
             self.align(
                 "rz", lambda s: wrap(obj(s)[1] - self.closing_angle(s), period), math.radians(4)
             )
+        resting_z = obj(state)[0][2]
         self.move_tcp("z", grasp_z, 0.004)
+        off = np.linalg.norm(obj(self.settle())[0][:2] - tcp(self.view.state())[:2])
+        if off > 0.008:  # the fingers pushed it aside on the way down: up, and again
+            self.move_tcp("z", travel_z, 0.006)
+            raise Missed(f"pushed {1000 * off:.0f} mm off the fingers' centre")
         self.gripper(True)
         self._report(name, "grasped")
         self.move_tcp("z", travel_z, 0.006)  # its base above the molds' walls
+        if obj(self.settle())[0][2] < resting_z + 0.015:  # it stayed on the table
+            self.gripper(False)
+            raise Missed("not lifted by the grasp")
         mold = np.array([ROW_X[SHAPES.index(shape)], MOLD_Y])
         self.align_xy(lambda s: mold - obj(s)[0][:2], 0.006)
         if shape.symmetry is not None:

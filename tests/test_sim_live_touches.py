@@ -93,3 +93,32 @@ def test_samples_that_arrive_together_keep_their_spacing():
         touches.add({1: Fingertip(50.0, 20.0 + k, 1.5)}, 500.0 + 0.01 * k, 1.0, 100.0)
     times = [sample.t for sample in touches.timeline]
     assert times[-1] - times[0] == pytest.approx(0.4)
+
+
+def test_a_lift_off_after_a_rest_plays_at_once_whatever_the_play_out_delay():
+    """The delay keeps a motion's shape; a finger that rests, then lifts, stops the arm as
+    soon as the lift arrives, not a play-out delay later."""
+    touches = OutsideTouches(FS, hover_tau_s=0.01)
+    touches.jitter_s = MAX_TOUCH_JITTER_S  # a sender that was late before: 0.3 s behind
+    tip = Fingertip(50.0, 50.0, 1.5)
+    head, client = 1.0, 500.0
+    touches.add({1: tip}, client, head)
+    touches.tracks(int(head * FS), int(0.5 * FS))  # it landed and rests
+    head += 0.5
+    for k in range(1, 6):  # resting samples, queued MAX_TOUCH_JITTER_S behind
+        touches.add({1: tip}, client + 0.5 + 0.01 * k, head)
+    touches.add({}, client + 0.56, head)
+    assert touches.timeline[-1].t == pytest.approx(head)
+    assert [sample.touches for sample in touches.timeline] == [{}]  # the rests are dropped
+
+
+def test_a_lift_off_right_after_a_motion_plays_the_motion_first():
+    touches = OutsideTouches(FS, hover_tau_s=0.01)
+    head, client = 1.0, 500.0
+    for k in range(21):  # a slide sent over 0.2 s, all of it still queued
+        touches.add({1: Fingertip(50.0, 20.0 + 2 * k, 1.5)}, client + 0.01 * k, head)
+    touches.add({}, client + 0.21, head)
+    moving = [sample for sample in touches.timeline if sample.touches]
+    assert moving[-1].touches[1].y_mm == pytest.approx(60.0)  # the whole slide plays
+    assert moving[-1].t - moving[0].t == pytest.approx(0.2)
+    assert touches.timeline[-1].t == pytest.approx(moving[-1].t)  # then the lift, at once

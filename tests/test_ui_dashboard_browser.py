@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hardware_mouse import HardwareMouse
 
 from wovenskin.control.safety_limits import SafetyLimits
 from wovenskin.runtime.session import open_session
@@ -141,56 +142,6 @@ class TouchScreen:
 
     def lift(self) -> None:
         self._send("touchEnd", [])
-
-
-class HardwareMouse:
-    """A mouse that samples its path on its own clock, as a real one does (Chrome DevTools
-    mouse events carrying their sample times).
-
-    Playwright's ``page.mouse.move`` makes one event per round trip, stamped when the page
-    takes it: when a busy page stalls for 300 ms the path it sees rests, then jumps.  A
-    USB mouse keeps sampling through the stall and the browser hands the page the missed
-    samples, each with its own time, as coalesced events.  This driver does the same: each
-    step sends the samples of the time since its last one (at least ``SPACING_S`` apart, at
-    most ``MAX_CATCH_UP`` of them), stamped with their times on the path."""
-
-    SPACING_S = 0.008  # a 125 Hz USB mouse
-    MAX_CATCH_UP = 3
-
-    def __init__(self, page) -> None:
-        self.cdp = page.context.new_cdp_session(page)
-        self.last_t: float | None = None
-
-    def _event(self, kind: str, xy: tuple[float, float], t: float, buttons: int) -> None:
-        event = {"type": kind, "x": xy[0], "y": xy[1], "timestamp": t, "buttons": buttons}
-        if kind != "mouseMoved" or buttons:
-            event.update(button="left", clickCount=1 if kind != "mouseMoved" else 0)
-        self.cdp.send("Input.dispatchMouseEvent", event)
-
-    def down(self, path) -> None:
-        """Press the button where ``path(0)`` (page pixels) is; ``path(s)`` is where the
-        hand is ``s`` seconds after the press."""
-        self.path, self.t0 = path, time.time()
-        self._event("mouseMoved", path(0.0), self.t0, 0)
-        self._event("mousePressed", path(0.0), self.t0, 1)
-        self.last_t = self.t0
-
-    def step(self) -> None:
-        """Send the samples of the path since the last step (the newest at the present)."""
-        assert self.last_t is not None, "press first"
-        now = time.time()
-        count = min(self.MAX_CATCH_UP, int((now - self.last_t) / self.SPACING_S))
-        for k in range(1, count + 1):
-            t = self.last_t + (now - self.last_t) * k / count
-            self._event("mouseMoved", self.path(t - self.t0), t, 1)
-        if count:
-            self.last_t = now
-
-    def up(self) -> None:
-        assert self.last_t is not None, "press first"
-        now = time.time()
-        self._event("mouseReleased", self.path(now - self.t0), now, 0)
-        self.last_t = None
 
 
 def _wait_for(page, expression: str, timeout_s: float) -> bool:

@@ -24,6 +24,7 @@ from importlib import resources
 from pathlib import Path
 
 import pytest
+from skin_driver import SkinDriver
 from stand_ins import ContactMeans
 from task_operator import KeyboardDriver, Operator, OperatorError, PendantDriver, ServerView
 from test_ui_dashboard_browser import SHOTS, _save, browser, open_page  # noqa: F401 - the fixture
@@ -45,7 +46,11 @@ RUNS = [
     ("pick_place", "pendant"),
     ("pour", "keyboard"),
     ("pour", "pendant"),
+    ("pour", "skin"),
+    ("pick_place", "skin"),
 ]
+INTERFACES = ("keyboard", "pendant", "skin")
+SIM_SKIN = "sim:auto=0,seed=11"  # the virtual skin: the page's mouse on the simulated skin
 SPEEDS = {  # the default mapping's [motion] values -> the study's
     "linear_speed = 0.05": "linear_speed = 0.1",
     "angular_speed = 15.0": "angular_speed = 30.0",
@@ -78,10 +83,12 @@ def dashboard(tmp_path_factory, study_dir):
     mapping = _study_mapping(home / "mapping.toml")
 
     def opener(skin: str, robot: str, task=None):
+        # no skin for the keys and the panel (a stand-in recogniser that never acts); the
+        # simulated skin with the shipped recogniser for the virtual skin's trials
+        stand_in = {} if skin.startswith("sim") else {"recognizer": ContactMeans("swipe_up")}
         return open_session(
-            skin, robot, recognizer=ContactMeans("swipe_up"), poses=home / "poses.toml",
-            task=task, mapping=mapping,
-        )  # fmt: skip
+            skin, robot, poses=home / "poses.toml", task=task, mapping=mapping, **stand_in
+        )
 
     runner = DashboardRunner(opener, "none", "sim", task="pick_place", study_dir=study_dir)
     server = BackgroundServer(runner)
@@ -116,6 +123,19 @@ def _arm_to_initial(page, view: ServerView) -> None:
     view.wait(lambda s: not s["robot"]["moving"], 60, "the arm at its initial pose")
 
 
+def _use_skin(page, view: ServerView, skin: str) -> None:
+    """The experimenter types the skin source into the Controls panel and applies it."""
+    if view.state()["skin"]["source"].startswith(skin):
+        return
+    page.fill("#skin-spec", skin)
+    page.evaluate("document.getElementById('switch').click()")
+    view.wait(lambda s: s["skin"]["source"].startswith(skin), 60, f"the skin {skin}")
+    view.wait(lambda s: not s["skin"]["calibrating"], 60, "the skin's calibration")
+    page.wait_for_function(
+        "window.wovenskin.state && !window.wovenskin.state.skin.calibrating", timeout=60000
+    )
+
+
 def _start_trial(page, view: ServerView, task: str, interface: str) -> None:
     page.fill("#participant", PARTICIPANT)
     page.evaluate("document.activeElement.blur()")  # page keys go nowhere while typing
@@ -135,15 +155,19 @@ def _start_trial(page, view: ServerView, task: str, interface: str) -> None:
 def test_a_study_trial_completes_the_task(page, dashboard, task, interface) -> None:
     runner = dashboard.runner
     view = ServerView(runner)
+    lines: list[str] = []
+    if interface == "skin":
+        _use_skin(page, view, SIM_SKIN)
     _choose_task(page, view, task)
     if interface == "keyboard":
         driver = KeyboardDriver(page, view, runner.session.mapping)
-    else:
+    elif interface == "pendant":
         driver = PendantDriver(page, view)
+    else:
+        driver = SkinDriver(page, runner, log=lines.append)
     _arm_to_initial(page, view)
     driver.prepare()
     _start_trial(page, view, task, interface)
-    lines: list[str] = []
     operator = Operator(runner, driver, log=lines.append)
     started, session_t0 = time.monotonic(), view.state()["t"]
     try:
@@ -151,6 +175,10 @@ def test_a_study_trial_completes_the_task(page, dashboard, task, interface) -> N
         state = view.wait(lambda s: not s["study"]["running"], 60, "the trial to end")
     finally:
         SHOTS.mkdir(parents=True, exist_ok=True)  # what the operator did, kept by CI
+        if isinstance(driver, SkinDriver):
+            lines.append(f"gestures not understood: {driver.misread()}")
+            lines.append(f"gesture timings (s to draw, s to its command): {driver.timings}")
+            lines.append(f"learnt: lead {operator.lead}, nudge gain {operator.gain}")
         (SHOTS / f"study-{task}-{interface}.log").write_text("\n".join(lines) + "\n")
         driver.release()
         if view.state()["study"]["running"]:  # leave the panel free for the next trial
@@ -186,8 +214,8 @@ def test_the_study_report_has_every_task_and_interface(study_dir) -> None:
     assert set(RUNS) <= done, f"trials missing from the study: {set(RUNS) - done}"
     report = write_report(study_dir)
     for task in ("pick_place", "pour"):
-        rows = {c.interface: c for c in task_table(trials, task, ("keyboard", "pendant"))}
-        for interface in ("keyboard", "pendant"):
+        rows = {c.interface: c for c in task_table(trials, task, INTERFACES)}
+        for interface in INTERFACES:
             row = rows[interface]
             assert row.trials >= 1 and row.success_rate == 1.0
             assert row.time_mean > 0 and row.commands_mean > 0

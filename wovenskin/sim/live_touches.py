@@ -195,17 +195,30 @@ class OutsideTouches:
     def _lift_now(self, t: float, head: float, wall: float | None) -> float:
         """The stream time of a lift-off sample due at ``t``: earlier by how far the stream
         fell behind the wall clock since the touch began (less :data:`SLOW_STREAM_S`),
-        never before ``head``; queued samples after it are dropped (class docstring)."""
-        if wall is None or self._wall_anchor is None:
-            return t
-        wall0, head0 = self._wall_anchor
-        behind = (float(wall) - wall0) - (head - head0) - SLOW_STREAM_S
-        if behind <= 0.0:
-            return t
-        t = max(head, t - behind)
+        and no later than the end of the motion still queued (a rest before a lift-off
+        says nothing more: the play-out delay is there to keep a motion's shape, not to
+        hold a resting finger down), never before ``head``; queued samples after it are
+        dropped (class docstring)."""
+        if wall is not None and self._wall_anchor is not None:
+            wall0, head0 = self._wall_anchor
+            behind = (float(wall) - wall0) - (head - head0) - SLOW_STREAM_S
+            if behind > 0.0:
+                t = t - behind
+        t = max(head, min(t, self._motion_end(head)))
         while self.timeline and self.timeline[-1].t > t:
             self.timeline.pop()
         return t
+
+    def _motion_end(self, head: float) -> float:
+        """The stream time of the last queued sample that moves or presses a fingertip
+        (``head`` when only rests are queued)."""
+        before = {key: finger.target for key, finger in self.fingers.items()}
+        end = head
+        for sample in self.timeline:
+            if set(sample.touches) != set(before) or _changes(before, sample.touches):
+                end = sample.t
+            before = sample.touches
+        return end
 
     def _playout_delay(self, head: float) -> float:
         """The delay a touch starting at stream time ``head`` plays behind its first sample:
