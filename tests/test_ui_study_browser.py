@@ -1,11 +1,14 @@
-"""A short study run in real headless Chromium: both tasks completed with the keyboard and the
-teach pendant, each as a study trial started from the page's study panel, then the report.
+"""A short study run in real headless Chromium: both tasks completed with each of the three
+interfaces (the page's keys, the jog panel, gestures drawn on the virtual skin), each as a
+study trial started from the page's study panel, then the report.
 
 One dashboard and one study folder serve the whole module, so the trials accumulate in one
-study: participant P01 does ``pick_place`` and ``pour`` with the keyboard (page keys) and
-the pendant (jog panel buttons held with the mouse, step clicks near the goal).  Each trial
-is started from the study panel (participant, task and interface chosen in the page) and
-ends by itself on the task's own success; the robot is operated by
+study: participant P01 does ``pick_place`` and ``pour`` with the keyboard (page keys), the
+pendant (jog panel buttons held with the mouse, step clicks near the goal) and the skin
+(the experimenter switches the page to the simulated skin, read by the shipped recogniser;
+the gestures are drawn with the mouse as :mod:`skin_driver` says).  Each trial is started
+from the study panel (participant, task and interface chosen in the page) and ends by
+itself on the task's own success; the robot is operated by
 :class:`task_operator.Operator`, closed loop on the session's state read on the server.
 The last test runs the study report on the folder and checks its tables and plots.
 
