@@ -31,8 +31,9 @@ test: $(VENV)/.installed-dev
 	$(PY) -m pytest -m "browser and not acceptance"
 
 # The acceptance tier: a short user study run in the browser, both tasks completed with the
-# page's keyboard and jog panel by a scripted operator as study trials, then the report
-# (about 6 minutes on this machine; left out of `make test` to keep it under 15 minutes).
+# page's keyboard, jog panel and virtual skin by a scripted operator as study trials, then
+# the report (about 12 minutes on this machine; left out of `make test` to keep it under 15
+# minutes).
 test-acceptance: $(VENV)/.installed-dev
 	@command -v chromium >/dev/null 2>&1 || $(MAKE) --no-print-directory chromium
 	$(PY) -m pytest -m acceptance

@@ -196,9 +196,13 @@ class Operator:
     def _sent(self, count: int, timeout_s: float = 60.0) -> None:
         self.view.wait(lambda s: self.view.commands(s) >= count, timeout_s, "the command")
 
-    def align(self, axis: str, error, tol: float, timeout_s: float = 120.0) -> None:
+    def align(
+        self, axis: str, error, tol: float, timeout_s: float = 120.0, presses: bool = True
+    ) -> None:
         """Drive ``axis`` until ``|error(state)| <= tol``; ``error`` is goal minus now in
-        the axis's direction (m or rad), read from the server's state."""
+        the axis's direction (m or rad), read from the server's state.  ``presses``
+        False: short moves only (toward contact, where a held move's overshoot would push
+        an object or jam it against a mold's rim)."""
         kind = self._kind(axis)
         v, a = self.speed[kind], self.accel[kind]
         deadline = time.monotonic() + timeout_s
@@ -216,7 +220,7 @@ class Operator:
             before = self.view.commands(state)
             self.moves += 1
             self.log(f"{time.monotonic() - self.started:7.2f} s  {axis} {e:+.4f}")
-            if abs(e) > 1.5 * brake:
+            if presses and abs(e) > 1.5 * brake:
                 sent = self.driver.press(axis, sign)
                 try:
                     self._sent(before + sent)
@@ -294,9 +298,9 @@ class Operator:
                 return
         raise OperatorError(f"x, y: error {error(self.view.state())[:2]} > {tol}")
 
-    def move_tcp(self, axis: str, goal: float, tol: float = 0.002) -> None:
+    def move_tcp(self, axis: str, goal: float, tol: float = 0.002, presses: bool = True) -> None:
         i = TRANSLATIONS.index(axis)
-        self.align(axis, lambda s: goal - self.view.tcp(s)[i], tol)
+        self.align(axis, lambda s: goal - self.view.tcp(s)[i], tol, presses=presses)
 
     def gripper(self, close: bool, timeout_s: float = 20.0) -> None:
         """Toggle the gripper to ``close`` and wait until the fingers stop."""
@@ -375,7 +379,7 @@ class Operator:
                 "rz", lambda s: wrap(obj(s)[1] - self.closing_angle(s), period), math.radians(4)
             )
         resting_z = obj(state)[0][2]
-        self.move_tcp("z", grasp_z, 0.004)
+        self.move_tcp("z", grasp_z, 0.004, presses=False)  # short moves down to it
         off = np.linalg.norm(obj(self.settle())[0][:2] - tcp(self.view.state())[:2])
         if off > 0.008:  # the fingers pushed it aside on the way down: up, and again
             self.move_tcp("z", travel_z, 0.006)
@@ -395,7 +399,7 @@ class Operator:
         # walls (a finger beside the object stands over the wall), open
         state = self.settle()
         drop = obj(state)[0][2] - (shape.height / 2 + 0.003)
-        self.move_tcp("z", max(tcp(state)[2] - drop, MOLD_HEIGHT + 0.006), 0.003)
+        self.move_tcp("z", max(tcp(state)[2] - drop, MOLD_HEIGHT + 0.006), 0.003, presses=False)
         self._report(name, "lowered")
         self.gripper(False)
         self._report(name, "released")

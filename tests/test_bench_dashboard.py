@@ -19,7 +19,12 @@ def test_the_benchmark_measures_the_page_rate_and_the_swipes() -> None:
     assert 0 <= result.moved <= result.recognised <= 2
     if result.recognised:
         assert 0 < result.command_median_ms <= result.command_p90_ms
+    if result.moved:  # a swipe that moved the arm stopped it after its lift-off
+        assert 0 < result.lift_off_median_ms <= result.lift_off_p90_ms
+        assert result.lift_off_median_ms <= result.lift_still_median_ms
+        assert 0 <= result.lift_travel_median_mm <= result.lift_travel_max_mm < 100
     assert "page states" in str(result.table().columns[0]._cells)
+    assert "lift-off -> no command" in str(result.table().columns[0]._cells)
     json.dumps(result.to_dict())
 
 

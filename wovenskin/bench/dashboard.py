@@ -13,7 +13,9 @@ WebSocket, from a client in this process:
   time from the first touch message to the first state naming the right command, and to
   the first state in which the TCP moves (faster than 1 mm/s), as the client sees them:
   socket, touch jitter buffer, physics, conditioning, recogniser, dwell, safety, arm and
-  the page's update period included.
+  the page's update period included.  After each swipe's rest, from its lift-off message:
+  the time to the first state with no command, to the first with the TCP still, and the
+  TCP's way in between (how far the arm goes after the finger lifts).
 - The vocabulary as a touch screen draws it: ``gesture_rounds`` rounds of the 14
   gestures, each performed by a new simulated person (:func:`~wovenskin.sim.performances.
   perform`) and sent as a touch screen would send it: one pointer per fingertip, a
@@ -73,6 +75,11 @@ class DashboardBenchResult:
     command_p90_ms: float = 0.0
     motion_median_ms: float = 0.0
     motion_p90_ms: float = 0.0
+    lift_off_median_ms: float = 0.0  # the lift-off's message -> a state with no command
+    lift_off_p90_ms: float = 0.0
+    lift_still_median_ms: float = 0.0  # the lift-off's message -> the TCP still again
+    lift_travel_median_mm: float = 0.0  # the TCP's way from the lift-off's state to still
+    lift_travel_max_mm: float = 0.0
     commands: list[str | None] = field(default_factory=list)
     gesture_rounds: int = 0
     drawn: dict[str, list[str | None]] = field(default_factory=dict)  # gesture -> first commands
@@ -127,6 +134,15 @@ class DashboardBenchResult:
         table.add_row(
             "first touch -> TCP moving (client sees it)",
             f"median {self.motion_median_ms:.0f} ms, p90 {self.motion_p90_ms:.0f} ms",
+        )
+        table.add_row(
+            "lift-off -> no command (client sees it)",
+            f"median {self.lift_off_median_ms:.0f} ms, p90 {self.lift_off_p90_ms:.0f} ms",
+        )
+        table.add_row(
+            "lift-off -> TCP still; its way after the lift",
+            f"median {self.lift_still_median_ms:.0f} ms; median {self.lift_travel_median_mm:.1f}"
+            f" mm, max {self.lift_travel_max_mm:.1f} mm",
         )
         if self.drawn:
             latencies = [v for values in self.drawn_latency_ms.values() for v in values]
@@ -189,8 +205,9 @@ class _Client:
         self.ws.send(json.dumps(message))
 
 
-def _swipe(client: _Client, direction: int) -> float:
-    """Send one swipe's touch messages; returns the wall time of the first one."""
+def _swipe(client: _Client, direction: int) -> tuple[float, float]:
+    """Send one swipe's touch messages; returns the wall times of the first one and of the
+    lift-off."""
     start_y = 115.0 if direction < 0 else 25.0  # up: from low on the skin toward row 0
     steps = int(SWIPE_S / POINTER_PERIOD_S)
     progress = minimum_jerk(steps + 1)  # a hand's bell-shaped speed profile
@@ -201,8 +218,26 @@ def _swipe(client: _Client, direction: int) -> float:
         client.send({"type": "touch", "t": time.perf_counter(), "touches": [touch]})
         time.sleep(max(0.0, t0 + (k + 1) * POINTER_PERIOD_S - time.perf_counter()))
     time.sleep(REST_S)
-    client.send({"type": "touch", "t": time.perf_counter(), "touches": []})
-    return t0
+    lifted = time.perf_counter()
+    client.send({"type": "touch", "t": lifted, "touches": []})
+    return t0, lifted
+
+
+def _after_lift(seen: list[tuple[float, dict, int]], lifted: float) -> tuple[float, ...] | None:
+    """From the states after a lift-off at ``lifted``: seconds to the first with no command,
+    seconds to the first with the TCP still (and no command), and the TCP's way (m) from the
+    last state before the lift to that one; None if either never came."""
+    before = [s for t, s, _ in seen if t <= lifted]
+    after = [(t, s) for t, s, _ in seen if t > lifted]
+    off = next((t for t, s in after if not s["recognition"]["command"]), None)
+    still = next((
+        (t, s) for t, s in after
+        if not s["recognition"]["command"] and s["robot"].get("tcp_speed", 0) <= MOVING_M_S
+    ), None)  # fmt: skip
+    if not before or off is None or still is None:
+        return None
+    way = np.subtract(still[1]["robot"]["tcp"]["pos"], before[-1]["robot"]["tcp"]["pos"])
+    return off - lifted, still[0] - lifted, float(np.linalg.norm(way))
 
 
 def _draw(client: _Client, name: str, rng: np.random.Generator) -> float:
@@ -365,13 +400,16 @@ def run_dashboard_benchmark(
                 result.interval_median_ms = float(np.median(intervals))
                 result.interval_p90_ms = float(np.percentile(intervals, 90))
                 result.state_bytes = int(np.median([s[2] for s in idle]))
-            command_ms, motion_ms = [], []
+            command_ms, motion_ms, lifts = [], [], []
             for k in range(swipes):
                 direction = -1 if k % 2 == 0 else 1
                 expected = "swipe_up" if direction < 0 else "swipe_down"
-                start = _swipe(client, direction)
+                start, lifted = _swipe(client, direction)
                 time.sleep(1.0)  # the arm decelerates, the command log settles
                 seen = client.since(start)
+                lift = _after_lift(seen, lifted)
+                if lift is not None:
+                    lifts.append(lift)
                 named = [t for t, s, _ in seen if s["recognition"]["command"] == expected]
                 moving = [t for t, s, _ in seen if s["robot"].get("tcp_speed", 0) > MOVING_M_S]
                 first = next((s["recognition"]["command"] for _, s, _ in seen
@@ -409,6 +447,13 @@ def run_dashboard_benchmark(
             if motion_ms:
                 result.motion_median_ms = float(np.median(motion_ms))
                 result.motion_p90_ms = float(np.percentile(motion_ms, 90))
+            if lifts:
+                off_s, still_s, way_m = (np.array(v) for v in zip(*lifts, strict=True))
+                result.lift_off_median_ms = float(np.median(off_s) * 1000.0)
+                result.lift_off_p90_ms = float(np.percentile(off_s, 90) * 1000.0)
+                result.lift_still_median_ms = float(np.median(still_s) * 1000.0)
+                result.lift_travel_median_mm = float(np.median(way_m) * 1000.0)
+                result.lift_travel_max_mm = float(np.max(way_m) * 1000.0)
     finally:
         server.stop()
     return result
