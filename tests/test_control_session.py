@@ -498,7 +498,9 @@ def test_recording_can_start_and_stop_while_running(tmp_path) -> None:
         assert session.stop_recording() == path
         assert session.stop_recording() is None
         at_stop = path.read_bytes()
+        before = session.result().stream_s
         session.run(seconds=0.5)  # frames after the stop are not written
+        assert session.result().stream_s >= before + 0.49  # but the session went on
         assert path.read_bytes() == at_stop
     finally:
         session.close()
@@ -509,3 +511,24 @@ def test_recording_can_start_and_stop_while_running(tmp_path) -> None:
     where = f"{len(recording.t)} frames {recording.t[:1]}..{recording.t[-1:]}"
     assert len(recording.t) >= 20 and recording.annotations_of("robot"), where
     assert np.allclose(np.diff(recording.t), 0.005), where
+
+
+def test_a_session_runs_again_from_where_its_last_run_ended(tmp_path) -> None:
+    """Two runs tick every frame once: the frames of the block that lay past the first
+    run's end are ticked first by the second, none lost, none twice."""
+    session = _idle_session(tmp_path)
+    try:
+        ticks0, t0 = session.state.ticks, session.now
+        first = session.run(seconds=1.0)
+        assert first.ended == "1 s elapsed" and session.now <= t0 + 1.0 + 1e-9
+        second = session.run(seconds=0.5)
+        assert second.ended == "0.5 s elapsed"
+        assert session.now == pytest.approx(t0 + 1.5, abs=0.006)
+        fs = session.live_skin.info.sample_rate_hz
+        assert session.state.ticks - ticks0 == round((session.now - t0) * fs)
+        session.request_quit("asked before the third run")
+        third = session.run(seconds=5.0)
+        assert third.ended == "asked before the third run"
+        assert session.now == pytest.approx(t0 + 1.5, abs=0.006)  # it did not run
+    finally:
+        session.close()

@@ -119,6 +119,8 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self._commands = 0
         self._error_times: dict[str, float] = {}
         self._quit = ""
+        self._quit_asked = False  # request_quit() since the last run() ended
+        self._held_over: tuple[np.ndarray, deque] | None = None  # frames past a run's end
         self._started_wall: float | None = None
         self._first_t: float | None = None
         self._seconds: float | None = None
@@ -174,8 +176,9 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
                     self.recorder.close()
 
     def request_quit(self, reason: str = "quit by the user") -> None:
-        """End :meth:`run` after the current step."""
+        """End :meth:`run` after the current step (or the next run, if none is running)."""
         self._quit = reason
+        self._quit_asked = True
 
     def emergency_stop(self, reason: str = "stop key") -> None:
         """Stop everything now; motion resumes only after :meth:`resume`."""
@@ -210,13 +213,31 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         should_continue: Callable[[], bool] | None = None,
     ) -> SessionResult:
         """Step until the skin ends, :meth:`request_quit`, ``seconds`` of session time
-        pass, or ``should_continue()`` returns False; returns the session's figures."""
+        pass, or ``should_continue()`` returns False; returns the session's figures.
+        It may be called again: the next run goes on from where this one ended (the
+        frames of its last block that lay past its end come first)."""
         if self._started_wall is None:
             self.start()
+        if not self._quit_asked:
+            self._quit = ""  # the previous run's own end, not a request to quit
         self._seconds = seconds
+        self._end_t = None
         if seconds is not None and self._first_t is not None:
             self._end_t = self._now + seconds
+        if self._held_over is not None and not self._quit:
+            times, pending = self._held_over
+            self._held_over = None
+            self._tick_frames(times, pending)
+        try:
+            return self._run_loop(should_continue)
+        finally:
+            self._quit_asked = False
+
+    def _run_loop(self, should_continue: Callable[[], bool] | None) -> SessionResult:
+        seconds = self._seconds
         while True:
+            if self._quit:
+                break
             self.step()
             if self._quit:
                 break
@@ -327,17 +348,22 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
             ended = self.pipeline.reset(float(times[0]))
             changes = [] if ended is None else [ended]
         self._record_predictions(float(times[-1]))
-        pending = deque(sorted(changes, key=lambda c: c.t))
-        for t in times:
+        self._tick_frames(times, deque(sorted(changes, key=lambda c: c.t)))
+        return len(times)
+
+    def _tick_frames(self, times: np.ndarray, pending: deque) -> None:
+        """Tick the frames at ``times``, applying the recogniser's ``pending`` changes as
+        their times come; frames past the run's end are held over for the next run."""
+        for i, t in enumerate(times):
             if self._end_t is not None and t > self._end_t:
                 self._quit = f"{self._seconds:g} s elapsed"
-                return len(times)
+                self._held_over = (times[i:], pending)
+                return
             while pending and pending[0].t <= t:
                 self._apply_change(pending.popleft())
             self._tick(float(t))
         while pending:  # changes stamped after the block's last frame (none expected)
             self._apply_change(pending.popleft())
-        return len(times)
 
     def _apply_change(self, change: Any) -> None:
         self._commands += 1
