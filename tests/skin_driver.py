@@ -41,7 +41,12 @@ GESTURE_FOR = {
 SWIPES = {"up": ((0.5, 0.8), (0.5, 0.25)), "down": ((0.5, 0.2), (0.5, 0.75)),
           "right": ((0.2, 0.5), (0.75, 0.5)), "left": ((0.8, 0.5), (0.25, 0.5))}  # fmt: skip
 SWIPE_S = 0.4  # 140-190 mm/s on average (docs/gestures.md: 70-250 mm/s)
-NUDGE_RUN_S = 0.35  # how long a nudge's command runs: the dwell's end to the lift's effect
+# how long a nudge's command runs, from the command to the arm at rest after the lift: the
+# lift's way through the page and the skin (0.2-0.5 s measured in the browser) and the
+# shaped stop; an estimate on the long side, so a first nudge near an object falls short
+# (the operator learns from what it measures and asks for more)
+NUDGE_RUN_S = 0.6
+MAX_NUDGE_SPEED = 0.5  # the speed slider's most while nudging: people slow down near things
 
 
 class SkinDriver:
@@ -78,10 +83,12 @@ class SkinDriver:
         self._lift()
 
     def nudge(self, axis: str, sign: int, amount: float) -> int:
-        """A gesture lifted as soon as it acts, at the speed (the page's slider: 5-100 %
-        in 5 % steps) at which it would go ``amount`` in :data:`NUDGE_RUN_S`."""
+        """A gesture lifted as soon as it acts, at the speed (the page's slider: 5 % steps,
+        at most :data:`MAX_NUDGE_SPEED`) at which it would go ``amount`` in
+        :data:`NUDGE_RUN_S`."""
         speed = self.speed["angular" if axis in ROTATIONS else "linear"]
-        self._speed(float(np.clip(round(amount / (speed * NUDGE_RUN_S) * 20) / 20, 0.05, 1.0)))
+        wanted = round(amount / (speed * NUDGE_RUN_S) * 20) / 20  # the slider's 5 % steps
+        self._speed(float(np.clip(wanted, 0.05, MAX_NUDGE_SPEED)))
         try:
             self._perform(self._gesture(axis, sign))
         finally:
