@@ -224,6 +224,6 @@ def test_the_study_report_has_every_task_and_interface(study_dir) -> None:
             assert row.time_mean > 0 and row.commands_mean > 0
         assert (report.markdown.parent / f"{task}-box.png").stat().st_size > 1000
         assert f"Task: {task}" in report.markdown.read_text()
-    pngs = [p for p in report.written if p.suffix == ".png"]
+    pngs = [p for p in report.images if p.suffix == ".png"]
     assert len(pngs) >= 2 and all(p.read_bytes()[:4] == b"\x89PNG" for p in pngs)
     assert "100 %" in report.markdown.read_text()
