@@ -720,3 +720,30 @@ def test_random_twists_keep_the_measured_caps_and_the_box_on_the_simulated_arm(
             assert box.in_box(state.tcp.position, 1e-6), state.tcp.position - start
             inside = joints.upper - box.joint_margin - state.q
             assert np.all(np.minimum(inside, state.q - joints.lower - box.joint_margin) > -1e-6)
+
+
+class SpinningGantry(GantryRobot):
+    """A backend whose pose moves turn the tool at 3 rad/s, whatever it is asked."""
+
+    def move_to_pose(self, pose: Pose, speed: float = 0.05) -> None:
+        super().move_to_pose(pose, speed)
+        self.velocity[3:] = [0.0, 0.0, 3.0]
+
+
+def test_a_pose_move_that_turns_the_tool_too_fast_is_stopped() -> None:
+    safe, robot, _ = layer(SpinningGantry(q0=(0.4, 0.0, 0.3, 0.0, 0.0, 0.0)))
+    safe.move_to_pose(Pose([0.45, 0.0, 0.3], [1.0, 0.0, 0.0, 0.0]), speed=0.05)
+    safe.step(0.01)
+    assert robot.stops == 1 and not np.any(robot.velocity)
+    assert "turned the tool at 172 deg/s" in safe.stops[-1].reason
+
+
+def test_a_pose_move_that_turns_the_tool_keeps_under_the_angular_cap() -> None:
+    """Hypothesis found it: a pose move on the MuJoCo arm turned the tool from the initial
+    pose to the base's orientation at 1.055 rad/s, over the 1.047 cap (the move's speed
+    was chosen for its travel only)."""
+    start = tm5_900.forward_kinematics(tm5_900.INITIAL_Q)[:3, 3]
+    box = SafetyLimits(workspace_lower=start - [0.15, 0.2, 0.15], workspace_upper=start + 0.15)
+    program = [("pose", (0.375, 0.0, 0.25), 1.0), ("clear", None, 1.0)]
+    joints = lambda values: tm5_900.INITIAL_Q + np.asarray(values) * 0.6  # noqa: E731
+    run_fuzz(SimRobot(), box, program, joints, speed_tol=0.0, box_tol=1e-6, substep=0.02)

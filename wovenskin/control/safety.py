@@ -261,8 +261,21 @@ class SafetyLayer(Robot):
         self._sent = np.zeros(6)
         self._in_move = False
         cap = self.limits.max_linear_speed / self.model.headroom
-        self.robot.move_to_pose(pose, min(float(speed), cap))
+        self.robot.move_to_pose(pose, min(float(speed), cap, self._turn_speed_cap(pose)))
         self._in_move = True
+
+    def _turn_speed_cap(self, pose: Pose) -> float:
+        """The linear speed (m/s) at which a move to ``pose`` that turns the tool in step
+        with its travel (a line with the orientation interpolated along it) keeps under the
+        angular cap: the angular cap times the way over the turn (``inf`` for no turn; at
+        least 1 mm/s, and :meth:`_watch_move` stops a move that turns too fast anyway)."""
+        tcp = self.robot.state().tcp
+        way = float(np.linalg.norm(np.subtract(pose.position, tcp.position)))
+        relative = np.asarray(tcp.rotation()).T @ np.asarray(pose.rotation())
+        turn = float(np.arccos(np.clip((np.trace(relative) - 1.0) / 2.0, -1.0, 1.0)))
+        if turn < 1e-6:
+            return math.inf
+        return max(1e-3, self.limits.max_angular_speed / self.model.headroom * way / turn)
 
     def stop(self) -> None:
         self._sent = np.zeros(6)
@@ -499,6 +512,9 @@ class SafetyLayer(Robot):
             problem = ("the move would carry the TCP out of the workspace box", "workspace")
         elif state.tcp_speed > self.limits.max_linear_speed * MOVE_SPEED_TOLERANCE:
             problem = (f"the move ran at {1000 * state.tcp_speed:.0f} mm/s", "speed")
+        elif np.linalg.norm(velocity[3:]) > self.limits.max_angular_speed * MOVE_SPEED_TOLERANCE:
+            turning = math.degrees(float(np.linalg.norm(velocity[3:])))
+            problem = (f"the move turned the tool at {turning:.0f} deg/s", "speed")
         else:
             limits = self.joint_limits()
             q, dq = np.asarray(state.q, dtype=float), np.asarray(state.dq, dtype=float)
