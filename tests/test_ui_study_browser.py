@@ -14,8 +14,9 @@ The last test runs the study report on the folder and checks its tables and plot
 
 The study's mapping doubles the default speeds (100 mm/s, 30 deg/s, with doubled
 accelerations): an experimenter's setting that keeps each completion near a minute of wall
-time.  Skipped without Chromium or Playwright unless ``WOVENSKIN_REQUIRE_BROWSER=1``; the
-wall time of every completion is written to ``artifacts/browser/study-timings.json``.
+time (the skin's pick-and-place takes four to five); trials may last 10 minutes.  Skipped
+without Chromium or Playwright unless ``WOVENSKIN_REQUIRE_BROWSER=1``; the wall time of
+every completion is written to ``artifacts/browser/study-timings.json``.
 """
 
 from __future__ import annotations
@@ -53,6 +54,9 @@ RUNS = [
     ("pick_place", "skin"),
 ]
 INTERFACES = ("keyboard", "pendant", "skin")
+# the scripted operator seats the three shapes with the skin in 230-300 s of trial time
+# (docs/benchmarks.md): more than the template's 300 s limit leaves no margin
+TIME_LIMIT_S = 600.0
 SIM_SKIN = "sim:auto=0,seed=11"  # the virtual skin: the page's mouse on the simulated skin
 SPEEDS = {  # the default mapping's [motion] values -> the study's
     "linear_speed = 0.05": "linear_speed = 0.1",
@@ -75,7 +79,10 @@ def _study_mapping(path: Path) -> Path:
 @pytest.fixture(scope="module")
 def study_dir(tmp_path_factory):
     folder = tmp_path_factory.mktemp("study") / "study"
-    init_study(folder, "browser study")
+    definition = init_study(folder, "browser study")
+    text = definition.read_text()  # the experimenter allows 10 minutes a trial
+    assert "time_limit_s = 300.0" in text
+    definition.write_text(text.replace("time_limit_s = 300.0", f"time_limit_s = {TIME_LIMIT_S}"))
     add_participant(folder, PARTICIPANT, "novice")
     return folder
 
