@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 from hardware_mouse import HardwareMouse
-from task_operator import ROTATIONS, TRANSLATIONS, OperatorError, ServerView
+from task_operator import ROTATIONS, TRANSLATIONS, OperatorError, ServerView, choose
 
 # (action kind, tool axis index, sign) -> gesture, as in control/default_mapping.toml
 GESTURE_FOR = {
@@ -154,14 +154,9 @@ class SkinDriver:
         return box["x"] + box["width"] * fx, box["y"] + box["height"] * fy
 
     def _fingers(self, n: int) -> None:
-        """Choose the mouse hand's fingers (in one script: ``select_option`` waits for a
-        stable frame, a second or more on a page drawing its 3D view on the CPU)."""
+        """Choose the mouse hand's fingers (:func:`task_operator.choose`)."""
         if self.fingers != n:
-            self.page.evaluate(
-                "(n) => { const s = document.getElementById('fingers'); s.value = String(n);"
-                " s.dispatchEvent(new Event('change')); }",
-                n,
-            )
+            choose(self.page, "#fingers", str(n))
             self.fingers = n
 
     def _draw(self, gesture: str) -> None:

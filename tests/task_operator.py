@@ -445,6 +445,16 @@ class Operator:
 # -- the page's interfaces (Playwright)
 
 
+def choose(page, selector: str, value: str) -> None:
+    """Choose an option of a select as a person does (its change event), in one script
+    (``select_option`` waits for a stable frame, a second or more on a busy page)."""
+    page.evaluate(
+        "([selector, value]) => { const s = document.querySelector(selector);"
+        " s.value = value; s.dispatchEvent(new Event('change')); }",
+        [selector, value],
+    )
+
+
 class PageDriver:
     """What the page drivers share: the page, the server's view, the interface choice."""
 
@@ -556,13 +566,7 @@ class PendantDriver(PageDriver):
         return 1
 
     def _choose(self, selector: str, value: str) -> None:
-        """Choose an option of a select as a person does (its change event), in one script
-        (``select_option`` waits for a stable frame, a second or more on a busy page)."""
-        self.page.evaluate(
-            "([selector, value]) => { const s = document.querySelector(selector);"
-            " s.value = value; s.dispatchEvent(new Event('change')); }",
-            [selector, value],
-        )
+        choose(self.page, selector, value)
 
     def _at(self, selector: str) -> None:
         """Put the mouse over an element, scrolled into view.  Mouse events, and the

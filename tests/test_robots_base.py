@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wovenskin.robots.base import Pose, Robot, RobotCapabilities, RobotState, finite_vector
+from wovenskin.robots.base import (
+    Pose,
+    Robot,
+    RobotCapabilities,
+    RobotState,
+    finite_vector,
+    rotation_angle,
+)
 from wovenskin.robots.sim import SimRobot, tm5_900
 from wovenskin.robots.techman import TechmanRobot
 
@@ -100,3 +107,14 @@ def test_every_backend_declares_its_kinematics_and_scene() -> None:
     np.testing.assert_allclose(sim.default_poses["initial"], tm5_900.INITIAL_Q)
     assert sim.stop_time_s is not None and sim.control_period_s > 0.0
     assert TechmanRobot("127.0.0.1").capabilities().default_poses == {}
+
+
+def test_rotation_angle_reads_how_far_a_rotation_turns() -> None:
+    def about_z(angle: float) -> np.ndarray:
+        c, s = np.cos(angle), np.sin(angle)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    assert rotation_angle(np.eye(3)) == 0.0
+    assert rotation_angle(about_z(0.3)) == pytest.approx(0.3)
+    assert rotation_angle(about_z(-2.0)) == pytest.approx(2.0)
+    assert rotation_angle(np.diag([1.0, -1.0, -1.0]) * (1 + 1e-12)) == pytest.approx(np.pi)

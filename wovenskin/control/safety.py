@@ -58,6 +58,7 @@ from wovenskin.robots.base import (
     RobotError,
     RobotState,
     finite_vector,
+    rotation_angle,
 )
 
 log = logging.getLogger(__name__)
@@ -271,8 +272,7 @@ class SafetyLayer(Robot):
         least 1 mm/s, and :meth:`_watch_move` stops a move that turns too fast anyway)."""
         tcp = self.robot.state().tcp
         way = float(np.linalg.norm(np.subtract(pose.position, tcp.position)))
-        relative = np.asarray(tcp.rotation()).T @ np.asarray(pose.rotation())
-        turn = float(np.arccos(np.clip((np.trace(relative) - 1.0) / 2.0, -1.0, 1.0)))
+        turn = rotation_angle(np.asarray(tcp.rotation()).T @ np.asarray(pose.rotation()))
         if turn < 1e-6:
             return math.inf
         return max(1e-3, self.limits.max_angular_speed / self.model.headroom * way / turn)

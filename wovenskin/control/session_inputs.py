@@ -30,7 +30,7 @@ import numpy as np
 from wovenskin.control.mapping import FRAMES, Action, TwistAction
 from wovenskin.control.session_poses import PoseMove
 from wovenskin.errors import ConfigError
-from wovenskin.robots.base import N_JOINTS, RobotError, RobotState
+from wovenskin.robots.base import N_JOINTS, RobotError, RobotState, rotation_angle
 
 INPUT_KINDS = ("press", "release", "step", "go_to", "gripper", "speed", "mode")
 INPUT_FRAMES = (*FRAMES, "joint")
@@ -327,8 +327,7 @@ def rotation_matrix(vector: np.ndarray) -> np.ndarray:
 
 def rotation_vector(rotation: np.ndarray) -> np.ndarray:
     """Axis times angle of a rotation matrix (the inverse of :func:`rotation_matrix`)."""
-    cos = max(-1.0, min(1.0, (float(np.trace(rotation)) - 1.0) / 2.0))
-    angle = math.acos(cos)
+    angle = rotation_angle(rotation)
     axis = np.array(
         [
             rotation[2, 1] - rotation[1, 2],

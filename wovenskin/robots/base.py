@@ -122,6 +122,12 @@ class JointLimits:
     max_speed: np.ndarray  # (6,) rad/s
 
 
+def rotation_angle(rotation: np.ndarray) -> float:
+    """The angle (rad, 0..pi) of a 3x3 rotation matrix: how far it turns about its axis."""
+    cos = (float(np.trace(rotation)) - 1.0) / 2.0
+    return math.acos(max(-1.0, min(1.0, cos)))
+
+
 def command_twist(twist: object) -> np.ndarray:
     """A twist command as six finite numbers; else a one-line :class:`RobotError`."""
     try:
