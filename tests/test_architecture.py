@@ -136,9 +136,11 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("control", "training"),
     ("teleop",),  # keyboard and teach pendant: inputs beside the skin
     ("runtime",),
+    ("operators",),  # simulated operators: people with human timing at an interface
     ("study",),  # user studies: plans, trials, reports
     ("ui",),
     ("bench",),  # benchmarks measure every stage, the dashboard too
+    ("reproduce",),  # the paper's evaluation regenerated: recognition, study, report
     ("cli",),
 )
 LAYER_OF = {package: level for level, packages in enumerate(LAYERS) for package in packages}

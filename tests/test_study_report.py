@@ -8,13 +8,13 @@ import pytest
 
 from wovenskin.outputs import OutputExistsError
 from wovenskin.study.report import SYNTHETIC_BANNER, write_report
-from wovenskin.study.simulate import simulate_study
+from wovenskin.study.synthetic import synthetic_study
 
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     folder = tmp_path_factory.mktemp("study")
-    simulate_study(folder, participants=6, seed=1, trials=1)
+    synthetic_study(folder, participants=6, seed=1, trials=1)
     shutil.rmtree(folder / "trials" / "S02" / "pour-pendant-1")  # a participant without it
     (folder / "trials" / "S03" / "pour-skin-1" / "trial.json").unlink()  # a killed trial
     return folder

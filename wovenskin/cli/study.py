@@ -94,23 +94,74 @@ def study_report(
     for line in report.warnings:
         warn(line)
     if report.synthetic:
-        warn("this study is SYNTHETIC (wovenskin study simulate): nothing in it was measured")
+        warn("this study is SYNTHETIC (wovenskin study synthetic): nothing in it was measured")
     console.print(f"wrote {report.markdown}, {report.html} and {len(report.images)} PNGs")
 
 
 @study_app.command("simulate")
 @user_errors
 def study_simulate(
+    directory: Path = typer.Argument(..., help="A new folder for the simulated study."),
+    participants: int = typer.Option(6, min=1, help="Simulated operators (novice, expert, ...)."),
+    trials: int = typer.Option(10, min=1, help="Trials per task and interface."),
+    seed: int = typer.Option(0, help="Random seed (the same seed runs the same study)."),
+    task: list[str] = typer.Option(["pick_place", "pour"], help="Tasks (repeat the option)."),
+    interface: list[str] = typer.Option(
+        ["skin", "keyboard", "pendant"], help="Interfaces (repeat the option)."
+    ),
+    objects: str = typer.Option(
+        "one", help="pick_place: 'one' object a trial (the paper's) or 'all'."
+    ),
+    time_limit: float = typer.Option(300.0, help="Seconds a trial may run from its first command."),
+    model: Path = MODEL,
+    jobs: int = typer.Option(1, min=1, help="Trials run at once (worker processes)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Write into a non-empty folder."),
+) -> None:
+    """Run a whole study with SIMULATED operators (novices and experts with human timing)
+    on the simulated arm and skin, headless and as fast as this computer runs; report it
+    with `wovenskin study report DIR`."""
+    from rich.progress import Progress
+
+    from wovenskin.study.simulate import simulate_study
+
+    total = participants * trials * len(task) * len(interface)
+    with Progress(console=console, transient=True) as bar:
+        job = bar.add_task("simulated trials", total=total)
+
+        def advance(run) -> None:
+            s = run.summary
+            bar.console.print(
+                f"{s.participant} {s.task}/{s.interface} trial {s.trial}: {s.outcome}, "
+                f"{s.duration_s:.1f} s, {s.commands} commands ({run.wall_s:.0f} s to run)",
+                highlight=False,
+            )
+            bar.advance(job)
+
+        study, runs = simulate_study(
+            directory, participants, seed, trials, tasks=tuple(task), interfaces=tuple(interface),
+            time_limit_s=time_limit, objects=objects, model=model, jobs=jobs,
+            overwrite=overwrite, progress=advance,
+        )  # fmt: skip
+    console.print(
+        f"wrote a SIMULATED study to {directory}: {len(runs)} trials of "
+        f"{len(study.participants)} simulated operators; report it with "
+        f"`wovenskin study report {directory}`"
+    )
+
+
+@study_app.command("synthetic")
+@user_errors
+def study_synthetic(
     directory: Path = typer.Argument(..., help="A new folder for the synthetic study."),
     participants: int = typer.Option(6, min=1, help="Synthetic participants."),
     seed: int = typer.Option(0, help="Random seed (the same seed writes the same study)."),
     trials: int = typer.Option(2, min=1, help="Trials per task and interface."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Write into a non-empty folder."),
 ) -> None:
-    """Write a SYNTHETIC study (labelled so in every file) to demo and test the report."""
-    from wovenskin.study.simulate import simulate_study
+    """Write a SYNTHETIC study (made-up numbers, labelled so in every file) to try the report."""
+    from wovenskin.study.synthetic import synthetic_study
 
-    study = simulate_study(directory, participants, seed, trials, overwrite)
+    study = synthetic_study(directory, participants, seed, trials, overwrite)
     console.print(
         f"wrote a SYNTHETIC study to {directory} ({len(study.participants)} participants); "
         f"report it with `wovenskin study report {directory}`"

@@ -31,6 +31,9 @@ from wovenskin.skin.frames import SkinInfo
 from wovenskin.skin.source import SkinSource
 from wovenskin.specs import Spec
 
+OBJECT_SOURCE_SPEC = "none:speed=0"
+"""The spec a chain built on a source object reports: read as fast as it delivers."""
+
 Provenance = Mapping[str, Any] | Callable[[SkinInfo], Mapping[str, Any]]
 """A recording's provenance, or a function of the skin's info that gives it."""
 
@@ -78,7 +81,7 @@ class LiveChain:
 
 
 def open_live_skin(
-    skin: str | Spec = "sim",
+    skin: str | Spec | SkinSource = "sim",
     *,
     conditioning: ConditioningConfig | None = None,
     record: str | Path | None = None,
@@ -94,10 +97,13 @@ def open_live_skin(
     are spec options used where the spec does not set them; ``record`` starts a recording
     (see :meth:`LiveChain.record`, which ``provenance`` and ``recorded`` go to).  A bad
     spec or option is one :class:`~wovenskin.errors.ConfigError` line."""
-    spec = skin_spec(skin)
-    unset = {key: value for key, value in (defaults or {}).items() if key not in spec.options}
-    spec = skin_spec(spec, **unset)
-    source = open_source(spec)
+    if isinstance(skin, str | Spec):
+        spec = skin_spec(skin)
+        unset = {key: value for key, value in (defaults or {}).items() if key not in spec.options}
+        spec = skin_spec(spec, **unset)
+        source = open_source(spec)
+    else:  # a source object (a simulated operator's skin): read as fast as it delivers
+        source, spec = skin, skin_spec(OBJECT_SOURCE_SPEC)
     chain = LiveChain(spec, source, LiveSkin(source, conditioning, on_message=on_message))
     if record is not None:
         chain.record(record, overwrite=overwrite, provenance=provenance, settings=recorded)
@@ -105,7 +111,7 @@ def open_live_skin(
 
 
 def open_live_pipeline(
-    skin: str | Spec = "sim",
+    skin: str | Spec | SkinSource = "sim",
     *,
     model: str | Path | None = None,
     recognizer: Any = None,

@@ -22,13 +22,14 @@ from wovenskin.robots.base import Robot
 from wovenskin.robots.registry import make_robot
 from wovenskin.runtime.pipeline import open_live_pipeline
 from wovenskin.runtime.sources import skin_spec
+from wovenskin.skin.source import SkinSource
 from wovenskin.tasks import WORKSPACE_LOWER, WORKSPACE_UPPER, Task, make_task
 
 FAST_SPEEDS = ("0", "0.0")  # a source's speed option meaning "as fast as read"
 
 
 def open_session(
-    skin: str = "sim",
+    skin: str | SkinSource = "sim",
     robot: str | Robot = "sim",
     model: str | Path | None = None,
     *,
@@ -58,7 +59,8 @@ def open_session(
     ``.wsrec`` path for the skin frames, predictions, commands and robot state;
     ``source_options``: spec options to add where the spec does not set them.
 
-    ``skin`` ``none`` is no skin (idle frames keep the clock: keyboard or pendant only).
+    ``skin`` may be a source object (a simulated operator's skin), read as fast as it
+    delivers.  ``skin`` ``none`` is no skin (idle frames keep the clock: keyboard or pendant only).
     ``task`` (a name such as ``pick_place`` or a :class:`~wovenskin.tasks.Task`) puts the
     simulated arm in that task's scene: the robot is ``task.robot()`` (``robot`` must be
     ``sim``), the limits default to the tasks' workspace box, and the session's ``task``
@@ -74,7 +76,7 @@ def open_session(
     action_mapping = ActionMapping.load(mapping)
     pose_store = PoseStore.load(poses)
     defaults: dict[str, Any] = {}
-    if fast_replay and skin_spec(skin).kind == "replay":
+    if fast_replay and isinstance(skin, str) and skin_spec(skin).kind == "replay":
         defaults["speed"] = 0
     defaults.update(source_options or {})
     chain = open_live_pipeline(

@@ -62,7 +62,9 @@ class StudyDefinition:
     trials_per_condition: Annotated[int, Ge(1)] = 3
     time_limit_s: Annotated[float, Gt(0)] = 300.0
     questionnaires: tuple[Questionnaire, ...] = ()
-    synthetic: bool = False  # set by `wovenskin study simulate`: nothing in it was measured
+    synthetic: bool = False  # set by `wovenskin study synthetic`: nothing in it was measured
+    # set by `wovenskin study simulate`: simulated operators on the simulated arm and skin
+    simulated: bool = False
     participants: tuple[Participant, ...] = ()
 
     def __post_init__(self) -> None:

@@ -112,7 +112,7 @@ class TrialRecorder:
 
     Times ``t`` are the runner's clock in seconds (any origin, never going back, e.g. the
     simulation time); wall-clock times are added for the record.  ``synthetic=True`` marks
-    every file as synthetic (``wovenskin study simulate`` only).  An existing trial folder
+    every file as synthetic (``wovenskin study synthetic`` only).  An existing trial folder
     is refused unless ``overwrite`` (a rerun of the trial replaces it).
     """
 

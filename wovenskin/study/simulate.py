@@ -1,194 +1,268 @@
-"""Synthetic studies, labelled as such everywhere, to demonstrate and test the report.
+"""Whole studies run by simulated operators, headless and faster than real time.
 
-``simulate_study`` writes a new study folder whose ``study.toml`` says ``synthetic = true``
-and whose every trial goes through :class:`~wovenskin.study.recorder.TrialRecorder` with
-``synthetic=True``: the same files a real study has, each marked.  The numbers are drawn
-from made-up distributions (the interface means below are placeholders, not the paper's
-results and not measurements); they exist so the report has something to show.
+``simulate_study`` writes a study folder in the format of a real one (docs/study.md):
+``study.toml`` (with ``simulated = true``), ``plan.csv``, every trial's logs, and
+``operators.json`` with each simulated participant's drawn profile.  Each trial is a
+fresh control session on the task's scene (the simulated TM5-900 with its gripper), the
+arm in its initial pose, run as fast as this computer can: a
+:class:`~wovenskin.operators.operator.SimulatedOperator` with a novice's or an expert's
+profile (:mod:`wovenskin.operators.profiles`) works through the interface's hand; on the
+skin it performs gestures on an :class:`~wovenskin.operators.skin_hand.OperatorSkin` (a
+skin drawn per participant from the simulator's full range) that go through the whole
+pipeline: conditioning, the recogniser, the arbiter, the mapping, the safety layer.  Trials
+are recorded by :class:`~wovenskin.study.session.StudyTrials` as the dashboard records a
+person's, so ``wovenskin study report`` reads them as it reads a real study.
+
+A pick-and-place trial moves one object, as the paper's does (the cube, the cylinder and
+the prism in turn; ``objects="all"`` seats all three in every trial).
 """
 
 from __future__ import annotations
 
-import math
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from wovenskin.errors import ConfigError
 from wovenskin.io import atomic_write_text
+from wovenskin.operators.hands import KeyboardHand, PendantHand, SkinHand
+from wovenskin.operators.operator import SimulatedOperator
+from wovenskin.operators.profiles import OperatorProfile, sample_profile
+from wovenskin.operators.script import ScriptRunner
+from wovenskin.operators.skin_hand import OperatorSkin
 from wovenskin.outputs import OutputExistsError
+from wovenskin.runtime.session import open_session
 from wovenskin.study.counterbalance import write_plan
-from wovenskin.study.definition import (
-    STUDY_FILE,
-    Participant,
-    StudyDefinition,
-    parse_study,
-    participant_block,
-)
-from wovenskin.study.questionnaires import QuestionnaireRow, record_questionnaire
-from wovenskin.study.recorder import TrialRecorder
+from wovenskin.study.definition import STUDY_FILE, Participant, StudyDefinition, parse_study
+from wovenskin.study.recorder import TrialSummary
+from wovenskin.study.session import StudyTrials
+from wovenskin.study.synthetic import study_text
+from wovenskin.tasks import make_task
+from wovenskin.tasks.shapes import SHAPES
 
-# Placeholder means (seconds, commands) per task and interface; invented for the demo.
-_TIME = {"skin": 45.0, "skin_registered": 42.0, "keyboard": 70.0, "pendant": 90.0}
-_COMMANDS = {"skin": 14.0, "skin_registered": 13.0, "keyboard": 30.0, "pendant": 38.0}
-_TASK_SCALE = {"pick_place": 1.3, "pour": 1.0}
-_KIND = {"skin": "gesture", "skin_registered": "gesture", "keyboard": "key", "pendant": "panel"}
-_EXPERT = 0.8  # experts are faster in this made-up world
-_EPOCH = 946684800.0  # 2000-01-01 UTC: synthetic wall times are visibly not real ones
-POSE_RATE_HZ = 5.0
+INTERFACES = ("skin", "keyboard", "pendant")
+OPERATORS_FILE = "operators.json"
 
 
-def _study_text(study: StudyDefinition) -> str:
-    lines = [
-        "# SYNTHETIC STUDY written by `wovenskin study simulate`: nothing here was measured.",
-        f'name = "{study.name}"',
-        "synthetic = true",
-        f"tasks = {list(study.tasks)}".replace("'", '"'),
-        f"interfaces = {list(study.interfaces)}".replace("'", '"'),
-        f"trials_per_condition = {study.trials_per_condition}",
-        f"time_limit_s = {study.time_limit_s!r}",
-        f"questionnaires = {list(study.questionnaires)}".replace("'", '"'),
-        "",
-    ]
-    return "\n".join(lines) + "\n".join(participant_block(p) + "\n" for p in study.participants)
+@dataclass(frozen=True)
+class TrialRun:
+    """One simulated trial's summary and what it cost."""
+
+    summary: TrialSummary
+    wall_s: float
+    misread: int  # gestures the recogniser read as something else or nothing
+    wrong_way: int  # moves started the wrong way
+    gave_up: str  # why the operator gave up ("" if it did not)
 
 
-def _trial(
-    rec: TrialRecorder,
-    rng: np.random.Generator,
-    task: str,
-    time_s: float,
-    n_commands: int,
-    limit: float,
-    clock: list[float],
-) -> None:
-    kind = _KIND.get(rec.interface, "gesture")
-    rec.start(0.0)
-    t0 = float(rng.uniform(1.0, 3.0))  # the participant's first command
-    duration = min(time_s, limit)
-    times = np.sort(rng.uniform(t0, t0 + duration, max(n_commands - 1, 0)))
-    times = np.concatenate([[t0], times])
-    grips = set(rng.choice(len(times), size=min(2, len(times)), replace=False).tolist())
-    # A path from the start over the object to the goal, wobblier for slower interfaces.
-    start, goal = np.array([0.35, -0.15, 0.35]), np.array([0.45, 0.2, 0.3])
-    via = np.array([0.5, -0.05, 0.2]) + rng.normal(0, 0.02, 3)
-    samples = int(duration * POSE_RATE_HZ) + 1
-    s = np.linspace(0, 1, samples)
-    path = np.where(
-        (s < 0.5)[:, None],
-        start + (via - start) * (2 * s)[:, None],
-        via + (goal - via) * (2 * s - 1)[:, None],
+def trial_objects(trial: int, objects: str) -> tuple[str, ...] | None:
+    """The shapes of pick-and-place trial ``trial``: one, in turn, or all (``None``)."""
+    if objects == "all":
+        return None
+    if objects != "one":
+        raise ConfigError(f"objects must be 'one' or 'all', got {objects!r}")
+    return (SHAPES[(int(trial) - 1) % len(SHAPES)].name,)
+
+
+def run_trial(
+    folder: str | Path,
+    participant: Participant,
+    profile: OperatorProfile,
+    task_name: str,
+    interface: str,
+    trial: int,
+    *,
+    time_limit_s: float,
+    objects: str = "one",
+    model: str | Path | None = None,
+    overwrite: bool = False,
+    log: Callable[[str], None] | None = None,
+) -> TrialRun:
+    """Run trial ``trial`` of one condition in a fresh session; returns its summary."""
+    if interface not in INTERFACES:
+        raise ConfigError(f"simulated operators use {', '.join(INTERFACES)}, not {interface!r}")
+    started = time.perf_counter()
+    options = {"objects": trial_objects(trial, objects)} if task_name == "pick_place" else {}
+    task = make_task(task_name, **options)
+    seed = profile.seed * 1000 + trial
+    skin: Any = OperatorSkin(profile.seed) if interface == "skin" else "none:speed=0"
+    hooks: list[Callable[[Any], None]] = []
+    session = open_session(
+        skin, "sim", model, task=task, on_tick=lambda s: hooks[0](s) if hooks else None
     )
-    path += (
-        np.cumsum(rng.normal(0, 0.002 * duration / 40, path.shape), axis=0)
-        * np.sin(math.pi * s)[:, None]
-    )
-    gripper = 0.0
-    pose_times = t0 + s * duration
-    events = sorted(
-        [(t, "command", i) for i, t in enumerate(times)]
-        + [(t, "pose", i) for i, t in enumerate(pose_times)]
-    )
-    for t, what, i in events:
-        if what == "command":
-            if i in grips:
-                gripper = 1.0 - gripper
-                rec.command(t, "synthetic", "gripper", "gripper")
-            else:
-                rec.command(t, "synthetic", f"{kind}_{int(rng.integers(0, 6))}", kind)
-        else:
-            rec.pose(t, (*path[i], 1.0, 0.0, 0.0, 0.0), gripper)
-    end = t0 + duration
-    timed_out = time_s >= limit
-    outcome = "timeout" if timed_out else ("success" if rng.random() < 0.9 else "give_up")
-    if task == "pour":
-        spilled = 0 if outcome == "success" else int(rng.integers(1, 15))
-        delivered = 100 - spilled - (0 if outcome == "success" else int(rng.integers(0, 30)))
-        measures = {
-            "particles_delivered": delivered,
-            "particles_spilled": spilled,
-            "particles_total": 100,
-        }
-        rec.task_event(end, {"event": "poured", "delivered": delivered, "spilled": spilled})
+    rng = np.random.default_rng([seed, 0x0A1])
+    if interface == "skin":
+        hand: Any = SkinHand(session, profile, rng, skin)
+    elif interface == "keyboard":
+        hand = KeyboardHand(session, profile, rng)
     else:
-        seated = 3 if outcome == "success" else int(rng.integers(0, 3))
-        measures = {"objects_seated": seated, "objects_total": 3}
-        rec.task_event(end, {"event": "seated", "objects": seated})
-    clock[0] += end  # the synthetic wall clock moves on by the trial's length
-    rec.finish(end, outcome, measures)
+        hand = PendantHand(session, profile, rng)
+    session.add_input(hand)
+    block = StudyTrials(
+        session, task, folder, participant.id, participant.expertise, interface, 1,
+        time_limit_s=time_limit_s, first=trial, overwrite=overwrite,
+    )  # fmt: skip
+    operator = SimulatedOperator(session, task, hand, profile, rng, log=log)
+    script = ScriptRunner()
+    gave_up = [""]
+
+    def on_tick(s: Any) -> None:
+        block.on_tick(s)
+        if block.runner is None:
+            return
+        if not script.running and script.error is None and not gave_up[0]:
+            script.start(operator.run(trial), s.now)
+        script.tick(s.now)
+        if script.error is not None and not gave_up[0]:
+            gave_up[0] = f"{type(script.error).__name__}: {script.error}"
+            hand.release_now()
+            block.end("give_up")
+
+    hooks.append(on_tick)
+    try:
+        session.run(seconds=time_limit_s + 120.0)
+    finally:
+        block.close()
+        session.close()
+    if not block.summaries:
+        raise ConfigError(f"trial {trial} of {participant.id} {task_name}/{interface} did not end")
+    misread = len(getattr(hand, "misread", []))
+    wall_s = time.perf_counter() - started
+    return TrialRun(block.summaries[0], wall_s, misread, hand.wrong, gave_up[0])
+
+
+def simulated_participants(n: int, seed: int) -> list[tuple[Participant, OperatorProfile]]:
+    """``n`` simulated participants, novices and experts in turn (3 + 3 for six, as the
+    paper's), each with a profile drawn from ``seed`` and its number."""
+    people = []
+    for i in range(1, int(n) + 1):
+        expertise = "novice" if i % 2 else "expert"
+        pid = f"S{i:02d}"
+        profile = sample_profile(pid, expertise, int(seed) * 100 + i)
+        people.append((Participant(pid, expertise, notes="simulated operator"), profile))
+    return people
+
+
+SIMULATED_HEADER = (
+    "# SIMULATED STUDY written by `wovenskin study simulate`: simulated operators on the "
+    "simulated arm and skin, not people."
+)
+
+
+@dataclass(frozen=True)
+class _Job:
+    folder: str
+    participant: Participant
+    profile: OperatorProfile
+    task: str
+    interface: str
+    trial: int
+    time_limit_s: float
+    objects: str
+    model: str | None
+    overwrite: bool
+
+
+def _run_job(job: _Job) -> TrialRun:
+    return run_trial(
+        job.folder, job.participant, job.profile, job.task, job.interface, job.trial,
+        time_limit_s=job.time_limit_s, objects=job.objects, model=job.model,
+        overwrite=job.overwrite,
+    )  # fmt: skip
 
 
 def simulate_study(
     directory: str | Path,
     participants: int = 6,
     seed: int = 0,
-    trials: int = 2,
+    trials: int = 10,
+    *,
+    tasks: tuple[str, ...] = ("pick_place", "pour"),
+    interfaces: tuple[str, ...] = INTERFACES,
+    time_limit_s: float = 300.0,
+    objects: str = "one",
+    model: str | Path | None = None,
+    jobs: int = 1,
     overwrite: bool = False,
-) -> StudyDefinition:
-    """Write a synthetic study of ``participants`` people (novice and expert in turn) to
-    the new folder ``directory``: study.toml, plan.csv, every trial, questionnaires."""
+    progress: Callable[[TrialRun], None] | None = None,
+) -> tuple[StudyDefinition, list[TrialRun]]:
+    """Run a whole study of simulated operators into the new folder ``directory``
+    (module docstring); ``jobs`` trials run at once in worker processes."""
     if participants < 1 or trials < 1:
-        raise ConfigError("a synthetic study needs at least one participant and one trial")
+        raise ConfigError("a simulated study needs at least one participant and one trial")
+    for interface in interfaces:
+        if interface not in INTERFACES:
+            raise ConfigError(f"simulated operators use {', '.join(INTERFACES)}, not {interface!r}")
     folder = Path(directory)
     if folder.exists() and any(folder.iterdir()) and not overwrite:
         raise OutputExistsError(folder, "files")
-    people = tuple(
-        Participant(f"S{i:02d}", "novice" if i % 2 else "expert", notes="synthetic")
-        for i in range(1, participants + 1)
-    )
+    people = simulated_participants(participants, seed)
     study = StudyDefinition(
-        name=f"synthetic demo (seed {seed})",
+        name=f"simulated operators (seed {seed})",
+        tasks=tuple(tasks),  # type: ignore[arg-type]
+        interfaces=tuple(interfaces),  # type: ignore[arg-type]
         trials_per_condition=trials,
-        time_limit_s=180.0,
-        questionnaires=("nasa_tlx", "sus"),
-        synthetic=True,
-        participants=people,
+        time_limit_s=time_limit_s,
+        questionnaires=(),
+        simulated=True,
+        participants=tuple(p for p, _ in people),
     )
     folder.mkdir(parents=True, exist_ok=True)
-    text = _study_text(study)
-    parse_study(text)  # what we write reads back
+    text = study_text(study, SIMULATED_HEADER)
+    parse_study(text)
     atomic_write_text(folder / STUDY_FILE, text)
     atomic_write_text(
-        folder / "SYNTHETIC.md",
-        "Everything in this folder is synthetic, "
-        "written by `wovenskin study simulate`; nothing was measured.\n",
+        folder / "SIMULATED.md",
+        "Every trial in this folder was run by a simulated operator (wovenskin.operators) on "
+        "the simulated arm and skin by `wovenskin study simulate`; no person took part.\n",
     )
+    info = {
+        "simulated": True,
+        "seed": seed,
+        "objects": objects,
+        "model": str(model) if model is not None else "shipped",
+        "operators": [profile.to_dict() for _, profile in people],
+    }
+    atomic_write_text(folder / OPERATORS_FILE, json.dumps(info, indent=2) + "\n")
     _, steps = write_plan(folder, study)
-    rng = np.random.default_rng(seed)
-    skill = {p.id: float(rng.lognormal(0, 0.15)) for p in people}
-    clock = [_EPOCH]
-    for step in steps:
-        base = _TIME[step.interface] * _TASK_SCALE[step.task] * skill[step.participant]
-        base *= _EXPERT if step.expertise == "expert" else 1.0
-        for n in range(1, step.trials + 1):
-            time_s = base * 0.9 ** (n - 1) * float(rng.lognormal(0, 0.2))
-            n_commands = max(
-                1, int(rng.poisson(_COMMANDS[step.interface] * _TASK_SCALE[step.task]))
-            )
-            rec = TrialRecorder(
-                folder,
-                step.participant,
-                step.expertise,
-                step.task,
-                step.interface,
-                n,
-                time_limit_s=study.time_limit_s,
-                synthetic=True,
-                overwrite=overwrite,
-                wall_clock=lambda: clock[0],
-            )
-            _trial(rec, rng, step.task, time_s, n_commands, study.time_limit_s, clock)
-            clock[0] += 60.0  # a minute between trials
-    for p in people:
-        for interface in study.interfaces:
-            load = {"skin": 30, "skin_registered": 30, "keyboard": 45, "pendant": 55}[interface]
-            tlx = tuple(float(np.clip(rng.normal(load, 12), 0, 100).round()) for _ in range(6))
-            good = {"skin": 4.2, "skin_registered": 4.2, "keyboard": 3.5, "pendant": 3.0}[interface]
-            sus = tuple(
-                int(np.clip(round(rng.normal(good if i % 2 == 0 else 6 - good, 0.7)), 1, 5))
-                for i in range(10)
-            )
-            record_questionnaire(
-                folder, QuestionnaireRow(p.id, p.expertise, interface, "", tlx, sus, synthetic=True)
-            )
-    return study
+    profiles = {p.id: profile for p, profile in people}
+    by_id = {p.id: p for p, _ in people}
+    work = [
+        _Job(
+            str(folder),
+            by_id[step.participant],
+            profiles[step.participant],
+            step.task,
+            step.interface,
+            n,
+            time_limit_s,
+            objects,
+            None if model is None else str(model),
+            overwrite,
+        )  # fmt: skip
+        for step in steps
+        for n in range(1, step.trials + 1)
+    ]
+    runs: list[TrialRun] = []
+    if jobs <= 1:
+        for job in work:
+            runs.append(_run_job(job))
+            if progress is not None:
+                progress(runs[-1])
+        return study, runs
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=int(jobs), mp_context=context) as pool:
+        futures = [pool.submit(_run_job, job) for job in work]
+        for future in as_completed(futures):
+            runs.append(future.result())
+            if progress is not None:
+                progress(runs[-1])
+    return study, runs

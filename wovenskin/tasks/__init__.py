@@ -13,13 +13,15 @@ from wovenskin.tasks.pour import PourState, PourTask
 TASKS: dict[str, type[Task]] = {"pick_place": PickPlaceTask, "pour": PourTask}
 
 
-def make_task(name: str) -> Task:
-    """A new task scene by its registry name (``pick_place``, ``pour``)."""
+def make_task(name: str, **options: object) -> Task:
+    """A new task scene by its registry name (``pick_place``, ``pour``); ``options`` go to
+    the task's constructor (``objects=("cube",)`` for a pick-and-place of one shape)."""
     try:
-        return TASKS[name]()
+        kind = TASKS[name]
     except KeyError:
         known = ", ".join(sorted(TASKS))
         raise ConfigError(f"unknown task {name!r}; known tasks: {known}") from None
+    return kind(**options)
 
 
 __all__ = [

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from wovenskin.errors import ConfigError
 from wovenskin.tasks.base import Task
 from wovenskin.tasks.scene import base_spec, body_yaw_and_tilt, set_free_pose
 from wovenskin.tasks.shapes import CLEARANCE, SHAPES, Shape, add_mold
@@ -65,11 +66,24 @@ class PickPlaceTask(Task):
     """Seat a cube, a cylinder and a triangular prism in their molds."""
 
     name = "pick_place"
-    shapes: tuple[Shape, ...] = SHAPES
+
+    def __init__(self, objects: tuple[str, ...] | None = None) -> None:
+        """``objects``: the names of the shapes to seat (default all three; the paper's
+        trial moves one object), each keeping its place in the rows."""
+        names = [shape.name for shape in SHAPES]
+        chosen = names if objects is None else list(objects)
+        unknown = [name for name in chosen if name not in names]
+        if unknown or not chosen:
+            known = ", ".join(names)
+            raise ConfigError(f"pick_place objects must be some of {known}, got {chosen}")
+        picked = [i for i, name in enumerate(names) if name in chosen]
+        self.shapes: tuple[Shape, ...] = tuple(SHAPES[i] for i in picked)
+        self.row_x: tuple[float, ...] = tuple(ROW_X[i] for i in picked)
+        super().__init__()
 
     def build(self) -> mujoco.MjSpec:
         spec = base_spec()
-        for shape, x in zip(self.shapes, ROW_X, strict=True):
+        for shape, x in zip(self.shapes, self.row_x, strict=True):
             shape.add_to(spec, (x, OBJECT_Y, shape.height / 2.0))
             add_mold(spec, shape, (x, MOLD_Y))
         return spec
@@ -79,7 +93,7 @@ class PickPlaceTask(Task):
         return self.physics.model.body(f"mold_{name}").pos.copy()
 
     def place(self, rng: np.random.Generator) -> None:
-        for shape, x in zip(self.shapes, ROW_X, strict=True):
+        for shape, x in zip(self.shapes, self.row_x, strict=True):
             dx, dy = rng.uniform(-JITTER, JITTER, 2)
             yaw = float(rng.uniform(-YAW_JITTER, YAW_JITTER))
             pos = (x + dx, OBJECT_Y + dy, shape.height / 2.0 + 0.001)

@@ -9,12 +9,12 @@ import pytest
 from wovenskin.outputs import OutputExistsError
 from wovenskin.study.definition import load_study
 from wovenskin.study.reader import read_trials
-from wovenskin.study.simulate import simulate_study
+from wovenskin.study.synthetic import synthetic_study
 
 
 def test_a_synthetic_study_is_complete_deterministic_and_labelled(tmp_path):
-    simulate_study(tmp_path / "a", participants=2, seed=3, trials=1)
-    simulate_study(tmp_path / "b", participants=2, seed=3, trials=1)
+    synthetic_study(tmp_path / "a", participants=2, seed=3, trials=1)
+    synthetic_study(tmp_path / "b", participants=2, seed=3, trials=1)
     a, b = tmp_path / "a", tmp_path / "b"
     assert (a / "trials.csv").read_text() == (b / "trials.csv").read_text()
     study = load_study(a)
@@ -32,5 +32,5 @@ def test_a_synthetic_study_is_complete_deterministic_and_labelled(tmp_path):
 def test_it_never_writes_into_a_folder_with_files(tmp_path):
     (tmp_path / "study.toml").write_text('name = "real"\n')
     with pytest.raises(OutputExistsError):
-        simulate_study(tmp_path, participants=1)
+        synthetic_study(tmp_path, participants=1)
     assert (tmp_path / "study.toml").read_text() == 'name = "real"\n'

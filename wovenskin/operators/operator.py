@@ -1,0 +1,353 @@
+"""A simulated operator: looks at the scene, plans the next move, acts through a hand.
+
+:class:`SimulatedOperator` carries out pick-and-place (each shape of the scene into its
+mold: above the object, its faces turned to the fingers, down, grasp, up, over the mold,
+turned to the pocket, down, release, up) and pouring (grasp the cup low, carry it over
+the container, tilt it until it is empty) one axis at a time, closed loop: before each
+move it thinks (the profile's M, longer while it hesitates, shorter with practice), starts
+the move through its hand, watches the arm, and lets go when the goal is as near as its
+reaction time and its anticipation allow (a novice overshoots more and corrects more).
+Short corrections are nudges: a tapped key, a pendant step, a short gesture.  It reads
+the scene as a person at the table sees it: the arm's TCP, the objects' poses (from the
+task's physics), the gripper's opening.  It never judges success: the study's trial
+runner does, from the task's state.  A plan that cannot go on raises
+:class:`OperatorGaveUp` (the trial then runs into its time limit, as a person who gives up
+would be stopped).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from wovenskin.operators.hands import ROTATIONS, TRANSLATIONS, Hand
+from wovenskin.operators.profiles import OperatorProfile
+from wovenskin.operators.script import Plan, Sleep, Timeout, Until
+from wovenskin.tasks.pick_place import MOLD_Y
+from wovenskin.tasks.pour import CONTAINER_XY
+from wovenskin.tasks.scene import body_yaw_and_tilt
+from wovenskin.tasks.shapes import MOLD_HEIGHT, Shape
+
+STUCK_S = 3.0  # a press that moves nothing this long is let go
+APPROACH_MARGIN = 0.025  # m: held moves toward contact stop this far above it
+WRONG_WAY = {"linear": 0.004, "angular": math.radians(3.0)}  # seen going the wrong way
+
+
+class OperatorGaveUp(Exception):
+    """The operator could not go on (three presses held back, a shape that would not seat)."""
+
+
+class Missed(Exception):
+    """A grasp did not hold the object: pick it up again."""
+
+
+def wrap(angle: float, period: float = 2 * math.pi) -> float:
+    """``angle`` into ``[-period/2, period/2)``."""
+    return (angle + period / 2) % period - period / 2
+
+
+class SimulatedOperator:
+    """Completes the session's task through ``hand`` (module docstring)."""
+
+    def __init__(
+        self,
+        session: Any,
+        task: Any,
+        hand: Hand,
+        profile: OperatorProfile,
+        rng: np.random.Generator,
+        log: Callable[[str], None] | None = None,
+    ) -> None:
+        self.session, self.task, self.hand = session, task, hand
+        self.profile, self.rng = profile, rng
+        self.log = log or (lambda text: None)
+        settings = session.mapping.settings
+        self.speed = {"linear": settings.linear_speed, "angular": settings.angular_speed}
+        self.accel = {"linear": settings.linear_accel, "angular": settings.angular_accel}
+        self.trial = 1
+        self.gain: dict[str, float] = {}
+        self.moves = 0
+        self.corrections = 0  # moves after one that went past or the wrong way
+        self.stuck = 0
+
+    # -- what the operator sees
+
+    @property
+    def robot(self) -> Any:
+        return self.session.state.robot
+
+    def tcp(self) -> np.ndarray:
+        return np.asarray(self.robot.tcp.position, dtype=float)
+
+    def tool_axes(self) -> np.ndarray:
+        return self.robot.tcp.rotation().T
+
+    def closing_angle(self) -> float:
+        """Direction (rad, about base z) of the gripper's closing axis (the tool's y)."""
+        y = self.tool_axes()[1]
+        return math.atan2(y[1], y[0])
+
+    def tilt(self) -> float:
+        """The tool's z axis from straight down, signed as a turn about base +x (rad)."""
+        z = self.tool_axes()[2]
+        return math.atan2(z[1], -z[2])
+
+    def body(self, name: str) -> tuple[np.ndarray, float]:
+        physics = self.task.physics
+        body = physics.model.body(name).id
+        yaw, _ = body_yaw_and_tilt(physics.data, body)
+        return physics.data.xpos[body].copy(), yaw
+
+    def measure(self, axis: str) -> float:
+        if axis in TRANSLATIONS:
+            return float(self.tcp()[TRANSLATIONS.index(axis)])
+        if axis == "rx":
+            return self.tilt()
+        if axis == "rz":
+            return self.closing_angle()
+        raise OperatorGaveUp(f"no measure of {axis}")
+
+    # -- acting
+
+    def think(self) -> Plan:
+        """Mental preparation before a move (and a second look while hesitating)."""
+        seconds = self.profile.thinking(self.trial)
+        if self.rng.random() < self.profile.hesitation:
+            seconds *= 2
+        yield Sleep(seconds * float(self.rng.lognormal(0.0, 0.25)))
+
+    def settle(self, timeout_s: float = 30.0) -> Plan:
+        """Wait until nothing is held and the arm is still, then take it in (a reaction)."""
+        still = [0]
+
+        def quiet() -> bool:
+            s = self.session.state
+            robot = s.robot
+            ok = s.held is None and s.gesture is None and robot is not None
+            ok = ok and robot.tcp_speed < 5e-4 and float(np.linalg.norm(robot.tcp_twist[3:])) < 5e-3
+            still[0] = still[0] + 1 if ok else 0
+            return still[0] >= 3
+
+        yield Until(quiet, timeout_s, "the arm at rest")
+        yield Sleep(self.profile.reaction_s)
+
+    def align(self, axis: str, error: Callable[[], float], tol: float, presses: bool = True,
+              timeout_s: float = 120.0) -> Plan:  # fmt: skip
+        """Drive ``axis`` until ``|error()| <= tol`` (goal minus now, m or rad)."""
+        kind = "angular" if axis in ROTATIONS else "linear"
+        a = self.accel[kind]
+        aim = tol * self.profile.precision
+        start = self.session.now
+        yield from self.settle()
+        while True:
+            e = float(error())
+            if abs(e) <= tol:
+                return
+            if self.session.now - start > timeout_s:
+                raise OperatorGaveUp(f"{axis}: error {e:+.4f} > {tol} after {timeout_s:g} s")
+            sign = 1 if e > 0 else -1
+            self.moves += 1
+            self.log(f"{self.session.now:7.2f} s  {axis} {e:+.4f} (tolerance {tol:g})")
+            yield from self.think()
+            v = self.speed[kind] * self.hand.scale
+            brake = v * v / (2 * a)
+            if presses and abs(e) > 2 * brake + v * self.profile.reaction_s:
+                sent = yield from self.hand.press(axis, sign, abs(e))
+                v = self.speed[kind] * self.hand.scale
+                brake = v * v / (2 * a)
+                if sent:
+                    yield from self._hold(axis, sign, error, brake, v, aim)
+                yield from self.hand.release()
+            else:
+                exact = not self.hand.tool_frame  # a pendant step moves its increment
+                gain = 1.0 if exact else self.gain.get(kind, 1.0)
+                asked = min(abs(e) * gain, abs(e) + 0.1 * brake, 2 * brake + v * 0.3)
+                self.log(f"{self.session.now:7.2f} s  {axis} nudge {sign * asked:+.4f}")
+                yield from self.hand.nudge(axis, sign, asked)
+                yield from self.settle()
+                done = sign * (e - float(error()))
+                if not exact and done > 0:
+                    change = abs(e) / done
+                    self.gain[kind] = float(np.clip(gain * np.clip(change, 0.7, 1.4), 0.5, 3.0))
+                continue
+            yield from self.settle()
+            if sign * float(error()) < -tol:
+                self.corrections += 1  # past the goal: a correction follows
+
+    def _hold(self, axis: str, sign: int, error: Callable[[], float], brake: float,
+              v: float, aim: float) -> Plan:  # fmt: skip
+        """Hold until the goal is within what the person anticipates of its reaction and
+        the arm's braking; let go a reaction time later.  The wrong way: let go and
+        correct; no motion for :data:`STUCK_S`: let go (three in a row: give up)."""
+        kind = "angular" if axis in ROTATIONS else "linear"
+        p = self.profile
+        seen = p.anticipation * (brake + v * p.reaction_s) + aim
+        origin = self.measure(axis)
+        e0 = float(error())
+        last = [origin, self.session.now]
+
+        def went(now: float) -> float:
+            moved = now - origin
+            return wrap(moved) if axis in ROTATIONS else moved
+
+        def look() -> bool:
+            now = self.measure(axis)
+            if sign * float(error()) <= seen:
+                return True
+            if -sign * went(now) > WRONG_WAY[kind]:
+                return True
+            if abs(now - last[0]) > 1e-4:
+                last[0], last[1] = now, self.session.now
+            return self.session.now - last[1] > STUCK_S
+
+        try:
+            yield Until(look, 4 * abs(e0) / v + 10.0, f"the {axis} goal")
+        except Timeout:
+            return
+        if -sign * went(self.measure(axis)) > WRONG_WAY[kind]:
+            self.corrections += 1
+            self.log(f"{axis}: going the wrong way, let go")
+        elif sign * float(error()) > seen:
+            self.stuck += 1
+            held = ", ".join(self._holding()) or "nothing said"
+            self.log(f"{axis}: no motion while pressed ({held})")
+            if self.stuck >= 3:
+                raise OperatorGaveUp(f"{axis}: held back three presses in a row ({held})")
+            return
+        else:
+            self.stuck = 0
+        yield Sleep(p.reaction_s)
+
+    def _holding(self) -> list[str]:
+        """What the safety layer says holds the arm back now."""
+        return [str(reason) for reason in self.session.holding()]
+
+    def align_xy(self, error: Callable[[], np.ndarray], tol: float, passes: int = 4) -> Plan:
+        """Both ``error()[0]`` (x) and ``[1]`` (y) within ``tol``, y first."""
+        for _ in range(passes):
+            for i, axis in ((1, "y"), (0, "x")):
+                yield from self.align(axis, lambda i=i: error()[i], tol)
+            yield from self.settle()
+            if np.all(np.abs(error()[:2]) <= tol):
+                return
+        raise OperatorGaveUp(f"x, y: error {error()[:2]} > {tol}")
+
+    def move_tcp(self, axis: str, goal: float, tol: float = 0.002, presses: bool = True) -> Plan:
+        i = TRANSLATIONS.index(axis)
+        yield from self.align(axis, lambda: goal - self.tcp()[i], tol, presses=presses)
+
+    def approach(self, goal_z: float, tol: float, margin: float = APPROACH_MARGIN) -> Plan:
+        """Down to ``goal_z`` near contact as people do: a held move to ``margin`` above
+        it (an overshoot there touches nothing), then short moves only."""
+        if self.tcp()[2] - goal_z > 2 * margin:
+            yield from self.move_tcp("z", goal_z + margin, margin / 2)
+        yield from self.move_tcp("z", goal_z, tol, presses=False)
+
+    def gripper(self, close: bool, timeout_s: float = 20.0) -> Plan:
+        """Toggle the gripper to ``close`` and wait until its fingers stop."""
+        yield from self.settle()
+        if bool(self.session.gripper_closed) != close:
+            yield from self.hand.gripper()
+            yield Until(lambda: bool(self.session.gripper_closed) == close, timeout_s, "gripper")
+        last = [None, self.session.now]
+
+        def stopped() -> bool:
+            width = self.robot.gripper.width
+            if last[0] is None or abs(width - last[0]) > 2e-4:
+                last[0], last[1] = width, self.session.now
+            return self.session.now - last[1] > 0.6
+
+        yield Until(stopped, timeout_s, "the fingers at rest")
+
+    # -- the tasks
+
+    def run(self, trial: int) -> Plan:
+        """The whole task of trial ``trial`` (1-based: practice shortens the thinking)."""
+        self.trial = max(1, int(trial))
+        yield Sleep(self.profile.thinking(self.trial))  # looks at the scene first
+        if self.task.name == "pick_place":
+            yield from self.pick_place()
+        elif self.task.name == "pour":
+            yield from self.pour()
+        else:
+            raise OperatorGaveUp(f"no plan for the task {self.task.name!r}")
+
+    def pick_place(self, travel_z: float = 0.062, grasp_z: float = 0.027) -> Plan:
+        """Seat every shape of the scene in its mold, retrying a shape that did not seat."""
+        for shape, row_x in zip(self.task.shapes, self.task.row_x, strict=True):
+            for _attempt in range(3):
+                try:
+                    yield from self._carry(shape, row_x, travel_z, grasp_z)
+                except Missed as missed:
+                    self.log(f"{shape.name}: {missed}")
+                    continue
+                yield Sleep(0.3)
+                if any(o.seated for o in self.task.state().objects if o.name == shape.name):
+                    break
+            else:
+                raise OperatorGaveUp(f"{shape.name} would not seat in three attempts")
+
+    def _carry(self, shape: Shape, row_x: float, travel_z: float, grasp_z: float) -> Plan:
+        def obj() -> tuple[np.ndarray, float]:
+            return self.body(shape.name)
+
+        yield from self.settle()
+        if abs(self.tcp()[2] - travel_z) > 0.006:
+            yield from self.move_tcp("z", travel_z, 0.006)
+        yield from self.align_xy(lambda: obj()[0] - self.tcp(), 0.005)
+        if shape.symmetry is not None:
+            period = math.pi / 3 if shape.sides == 3 else shape.symmetry
+            yield from self.align(
+                "rz", lambda: wrap(obj()[1] - self.closing_angle(), period), math.radians(4)
+            )
+        resting_z = obj()[0][2]
+        yield from self.approach(grasp_z, 0.004)
+        yield from self.settle()
+        off = float(np.linalg.norm(obj()[0][:2] - self.tcp()[:2]))
+        if off > 0.008:
+            yield from self.move_tcp("z", travel_z, 0.006)
+            raise Missed(f"pushed {1000 * off:.0f} mm off the fingers' centre")
+        yield from self.gripper(True)
+        yield from self.move_tcp("z", travel_z, 0.006)
+        yield from self.settle()
+        if obj()[0][2] < resting_z + 0.015:
+            yield from self.gripper(False)
+            raise Missed("not lifted by the grasp")
+        mold = np.array([row_x, MOLD_Y])
+        yield from self.align_xy(lambda: mold - obj()[0][:2], 0.006)
+        if shape.symmetry is not None:
+            yield from self.align("rz", lambda: -wrap(obj()[1], shape.symmetry), math.radians(2))
+        yield from self.align_xy(lambda: mold - obj()[0][:2], 0.0018)
+        yield from self.settle()
+        drop = obj()[0][2] - (shape.height / 2 + 0.003)
+        goal = max(self.tcp()[2] - drop, MOLD_HEIGHT + 0.006)
+        yield from self.approach(goal, 0.003)
+        yield from self.gripper(False)
+        yield from self.move_tcp("z", travel_z, 0.006)
+
+    def pour(self, grasp_z: float = 0.03, carry_z: float = 0.14, pour_y: float = -0.19) -> Plan:
+        """Grasp the cup low, carry it over the container, tilt it about base +x until it
+        is empty."""
+
+        def cup() -> np.ndarray:
+            return self.body("cup")[0]
+
+        yield from self.move_tcp("z", carry_z, 0.01)
+        yield from self.align_xy(lambda: cup() - self.tcp(), 0.004)
+        yield from self.approach(grasp_z, 0.004)
+        yield from self.gripper(True)
+        yield from self.move_tcp("z", carry_z, 0.01)
+        goal = np.array([CONTAINER_XY[0], pour_y])
+        yield from self.align_xy(lambda: goal - self.tcp()[:2], 0.01)
+        for degrees in (95, 108):
+            tilt = math.radians(degrees)
+            yield from self.align("rx", lambda t=tilt: t - self.tilt(), math.radians(6))
+            try:
+                yield Until(lambda: self.task.state().in_cup <= 1 or self.task.succeeded(), 20.0,
+                            "the cup empty")  # fmt: skip
+                return
+            except Timeout:
+                self.log(f"at {degrees} deg the cup still holds {self.task.state().in_cup}")
