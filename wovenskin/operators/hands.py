@@ -42,7 +42,8 @@ TAP_S = 0.08  # the shortest key press
 STEP_SIZES = (10, 5, 1)  # the pendant's increments, mm or deg
 MAX_GESTURE_TRIES = 4
 SPEED_LEVELS = (1.0, 0.5, 0.25, 0.1)  # the speed control's settings a person picks
-SLOW_HOLD_S = 4.0  # a held move at the reduced speed this long is still worth it
+SLOW_NUDGE_S = 2.5  # a short move that would take longer at the set speed: speed up
+FULL_SPEED_BEYOND = {"linear": 0.06, "angular": 0.35}  # m, rad: ways worth full speed
 FLICK_S = 0.45  # a flick's command lasts about this long (the motion's end, lift, release)
 
 
@@ -228,10 +229,10 @@ class SkinHand(Hand):
     def press(self, axis: str, sign: int, distance: float = math.inf) -> Plan:
         """Perform the gesture and hold it once the arm takes it; a misread gesture is
         lifted and performed again (each try a command when it activated something).
-        The speed control goes back to full speed first unless the way left
-        (``distance``) takes under :data:`SLOW_HOLD_S` at the speed it is set to."""
+        The speed control goes back to full speed first only for a long way
+        (``distance`` over :data:`FULL_SPEED_BEYOND`): near a goal it stays as it was set."""
         sent = 0
-        if distance / (self.scale * self.speed[self.kind(axis)]) > SLOW_HOLD_S:
+        if distance > FULL_SPEED_BEYOND[self.kind(axis)]:
             sent = yield from self._scale(1.0)
         return sent + (yield from self._perform(axis, sign))
 
@@ -276,9 +277,11 @@ class SkinHand(Hand):
         """A flick: the gesture lifted as soon as the arm takes it, at a speed scaled down
         (the dashboard's speed control) when even a flick would go too far."""
         kind = self.kind(axis)
-        scale = next((s for s in SPEED_LEVELS if s * self.speed[kind] * FLICK_S <= amount),
-                     SPEED_LEVELS[-1])  # fmt: skip
-        sent = yield from self._scale(scale)
+        needed = next((s for s in SPEED_LEVELS if s * self.speed[kind] * FLICK_S <= amount),
+                      SPEED_LEVELS[-1])  # fmt: skip
+        slow = amount / (self.scale * self.speed[kind]) > SLOW_NUDGE_S
+        sent = yield from self._scale(needed if slow else min(needed, self.scale))
+        scale = self.scale
         taken = yield from self._perform(axis, sign)
         if taken:
             yield Sleep(max(0.0, self.held_for(axis, amount / scale) - FLICK_S))

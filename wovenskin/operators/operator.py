@@ -164,7 +164,9 @@ class SimulatedOperator:
             else:
                 exact = not self.hand.tool_frame  # a pendant step moves its increment
                 gain = 1.0 if exact else self.gain.get(kind, 1.0)
-                asked = min(abs(e) * gain, abs(e) + 0.1 * brake, 2 * brake + v * 0.3)
+                full = self.speed[kind]  # a short move's size does not shrink with the speed
+                cap = full * full / a + full * 0.3
+                asked = min(abs(e) * gain, abs(e) + 0.1 * brake, cap)
                 self.log(f"{self.session.now:7.2f} s  {axis} nudge {sign * asked:+.4f}")
                 yield from self.hand.nudge(axis, sign, asked)
                 yield from self.settle()
@@ -225,7 +227,7 @@ class SimulatedOperator:
         """What the safety layer says holds the arm back now."""
         return [str(reason) for reason in self.session.holding()]
 
-    def align_xy(self, error: Callable[[], np.ndarray], tol: float, passes: int = 4) -> Plan:
+    def align_xy(self, error: Callable[[], np.ndarray], tol: float, passes: int = 10) -> Plan:
         """Both ``error()[0]`` (x) and ``[1]`` (y) within ``tol``, y first."""
         for _ in range(passes):
             for i, axis in ((1, "y"), (0, "x")):
