@@ -45,12 +45,12 @@ def test_user_errors_are_one_line_with_exit_code_2(tmp_path):
     assert result.exit_code == 2 and "--overwrite" in result.output
 
 
-def test_simulate_then_report(tmp_path):
+def test_synthetic_then_report(tmp_path):
     folder = tmp_path / "demo"
-    args = ["simulate", str(folder), "--participants", "2", "--seed", "4", "--trials", "1"]
+    args = ["synthetic", str(folder), "--participants", "2", "--seed", "4", "--trials", "1"]
     result = RUN.invoke(study_app, args, env=ENV)
     assert result.exit_code == 0 and "SYNTHETIC" in result.output
-    result = RUN.invoke(study_app, ["simulate", str(folder)], env=ENV)
+    result = RUN.invoke(study_app, ["synthetic", str(folder)], env=ENV)
     assert result.exit_code == 2 and "--overwrite" in result.output
     result = RUN.invoke(study_app, ["report", str(folder), "--out", str(tmp_path / "r")], env=ENV)
     assert result.exit_code == 0, result.output
@@ -101,3 +101,17 @@ def test_run_skin_trials_end_at_the_time_limit(tmp_path):
     rows = list(csv.DictReader((tmp_path / "trials.csv").open()))
     assert [r["outcome"] for r in rows] == ["timeout", "timeout"]
     assert all(float(r["duration_s"]) == 0.5 and int(r["gesture_commands"]) >= 1 for r in rows)
+
+
+def test_simulate_runs_simulated_operators_and_reports_them(tmp_path):
+    folder = tmp_path / "sim"
+    args = ["simulate", str(folder), "--participants", "1", "--trials", "1", "--task", "pour",
+            "--interface", "keyboard", "--time-limit", "5"]  # fmt: skip
+    result = RUN.invoke(study_app, args, env=ENV)
+    assert result.exit_code == 0, result.output
+    assert "SIMULATED" in result.output and "S01 pour/keyboard trial 1: timeout" in result.output
+    result = RUN.invoke(study_app, ["simulate", str(folder)], env=ENV)
+    assert result.exit_code == 2 and "--overwrite" in result.output
+    result = RUN.invoke(study_app, ["report", str(folder), "--out", str(tmp_path / "r")], env=ENV)
+    assert result.exit_code == 0, result.output
+    assert "SIMULATED OPERATORS" in (tmp_path / "r" / "report.md").read_text()
