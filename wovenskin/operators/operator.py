@@ -32,6 +32,7 @@ from wovenskin.tasks.scene import body_yaw_and_tilt
 from wovenskin.tasks.shapes import MOLD_HEIGHT, Shape
 
 STUCK_S = 3.0  # a press that moves nothing this long is let go
+MAX_LEAD_S = 1.5  # the most a person learns to let go early
 APPROACH_MARGIN = 0.025  # m: held moves toward contact stop this far above it
 WRONG_WAY = {"linear": 0.004, "angular": math.radians(3.0)}  # seen going the wrong way
 
@@ -68,7 +69,8 @@ class SimulatedOperator:
         self.speed = {"linear": settings.linear_speed, "angular": settings.angular_speed}
         self.accel = {"linear": settings.linear_accel, "angular": settings.angular_accel}
         self.trial = 1
-        self.gain: dict[str, float] = {}
+        self.gain: dict[str, float] = {}  # per kind: how much more to ask of a short move
+        self.lead: dict[str, float] = {}  # per kind: how much earlier (s) to let go
         self.moves = 0
         self.corrections = 0  # moves after one that went past or the wrong way
         self.stuck = 0
@@ -158,9 +160,18 @@ class SimulatedOperator:
                 sent = yield from self.hand.press(axis, sign, abs(e))
                 v = self.speed[kind] * self.hand.scale
                 brake = v * v / (2 * a)
+                reached = False
                 if sent:
-                    yield from self._hold(axis, sign, error, brake, v, aim)
+                    reached = yield from self._hold(axis, sign, error, brake, v, aim, kind)
                 yield from self.hand.release()
+                yield from self.settle()
+                if reached:  # learn how late a release acts: let go earlier or later
+                    past = -sign * float(error())  # > 0: beyond the goal
+                    rate = self.profile.anticipation  # novices learn it more slowly
+                    lead = self.lead.get(kind, 0.0) + rate * (past if past > 0 else 0.5 * past) / v
+                    self.lead[kind] = float(np.clip(lead, 0.0, MAX_LEAD_S))
+                if sign * float(error()) < -tol:
+                    self.corrections += 1  # past the goal: a correction follows
             else:
                 exact = not self.hand.tool_frame  # a pendant step moves its increment
                 gain = 1.0 if exact else self.gain.get(kind, 1.0)
@@ -174,19 +185,16 @@ class SimulatedOperator:
                 if not exact and done > 0:
                     change = abs(e) / done
                     self.gain[kind] = float(np.clip(gain * np.clip(change, 0.7, 1.4), 0.5, 3.0))
-                continue
-            yield from self.settle()
-            if sign * float(error()) < -tol:
-                self.corrections += 1  # past the goal: a correction follows
 
     def _hold(self, axis: str, sign: int, error: Callable[[], float], brake: float,
-              v: float, aim: float) -> Plan:  # fmt: skip
-        """Hold until the goal is within what the person anticipates of its reaction and
-        the arm's braking; let go a reaction time later.  The wrong way: let go and
-        correct; no motion for :data:`STUCK_S`: let go (three in a row: give up)."""
-        kind = "angular" if axis in ROTATIONS else "linear"
+              v: float, aim: float, kind: str) -> Plan:  # fmt: skip
+        """Hold until the goal is within what the person anticipates of its reaction, the
+        arm's braking and how late it has learnt its releases act with this interface
+        (a lifted gesture ends its command later than a released key); let go a reaction
+        time later.  The wrong way: let go and correct; no motion for :data:`STUCK_S`:
+        let go (three in a row: give up).  Returns whether it let go for the goal."""
         p = self.profile
-        seen = p.anticipation * (brake + v * p.reaction_s) + aim
+        seen = p.anticipation * (brake + v * p.reaction_s) + v * self.lead.get(kind, 0.0) + aim
         origin = self.measure(axis)
         e0 = float(error())
         last = [origin, self.session.now]
@@ -208,20 +216,22 @@ class SimulatedOperator:
         try:
             yield Until(look, 4 * abs(e0) / v + 10.0, f"the {axis} goal")
         except Timeout:
-            return
+            return False
+        reached = False
         if -sign * went(self.measure(axis)) > WRONG_WAY[kind]:
             self.corrections += 1
-            self.log(f"{axis}: going the wrong way, let go")
+            self.log(f"{axis}: going the wrong way, let go")  # a reaction time after seeing it
         elif sign * float(error()) > seen:
             self.stuck += 1
             held = ", ".join(self._holding()) or "nothing said"
             self.log(f"{axis}: no motion while pressed ({held})")
             if self.stuck >= 3:
                 raise OperatorGaveUp(f"{axis}: held back three presses in a row ({held})")
-            return
+            return False
         else:
-            self.stuck = 0
+            self.stuck, reached = 0, True
         yield Sleep(p.reaction_s)
+        return reached
 
     def _holding(self) -> list[str]:
         """What the safety layer says holds the arm back now."""
