@@ -49,11 +49,14 @@ class OperatorSkin(DevicelessSource):
         block: int = BLOCK_FRAMES,
         sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
         full_range: bool = False,
+        gesture_seed: int | None = None,
     ) -> None:
         """``physics`` default: a skin of typical response drawn from ``seed``
         (:meth:`~wovenskin.sim.skin_physics.SkinPhysics.sample_typical`), or from the
         simulator's full range with ``full_range`` (responses 150x apart: the dullest
-        skins lose a light touch in the noise)."""
+        skins lose a light touch in the noise).  ``gesture_seed``: the draws of each
+        performance and of the sensor noise (default: from ``seed``), so one person on one
+        skin performs differently from trial to trial."""
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x5C1])
         self.layout = SkinLayout()
         if physics is None:
@@ -61,6 +64,8 @@ class OperatorSkin(DevicelessSource):
             physics = draw(rng)
         self.physics = physics
         self.person = person if person is not None else Person.sample(rng)
+        if gesture_seed is not None:
+            rng = np.random.default_rng([int(gesture_seed) & 0xFFFFFFFF, 0x6E5])
         self._rng = rng
         self._fs = float(sample_rate_hz)
         self._model = SkinModel(self.physics, self.layout, int(rng.integers(2**31)), self._fs)

@@ -90,7 +90,9 @@ def run_trial(
     options = {"objects": trial_objects(trial, objects)} if task_name == "pick_place" else {}
     task = make_task(task_name, **options)
     seed = profile.seed * 1000 + trial
-    skin: Any = OperatorSkin(profile.seed) if interface == "skin" else "none:speed=0"
+    skin: Any = "none:speed=0"
+    if interface == "skin":  # the participant's skin and hand; this trial's performances
+        skin = OperatorSkin(profile.seed, gesture_seed=seed)
     hooks: list[Callable[[Any], None]] = []
     session = open_session(
         skin, "sim", model, task=task, on_tick=lambda s: hooks[0](s) if hooks else None
