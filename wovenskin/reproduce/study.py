@@ -55,7 +55,7 @@ TINY = StudyConfig(
     jobs=1,
     time_limit_s=40.0,
 )
-QUICK = StudyConfig(participants=2, trials=1, jobs=2, time_limit_s=120.0)
+QUICK = StudyConfig(participants=2, trials=1, jobs=1, time_limit_s=120.0)
 FULL = StudyConfig(participants=6, trials=10)
 
 
