@@ -4,6 +4,7 @@
 participant (balanced Latin squares); ``recorder`` writes a trial's logs crash-safely and
 ``runner`` feeds it from a live session on a task scene; ``questionnaires`` scores
 NASA-TLX and SUS; ``reader`` loads a study folder back; ``stats``, ``tables``, ``plots``
-and ``report`` build the report; ``simulate`` writes clearly labelled synthetic trials.
+and ``report`` build the report; ``simulate`` runs whole studies with simulated operators
+(labelled simulated) and ``synthetic`` writes made-up trials (labelled synthetic).
 The folder format is documented in docs/study.md.
 """
