@@ -71,8 +71,6 @@ class SimulatedOperator:
         self.trial = 1
         self.gain: dict[str, float] = {}  # per kind: how much more to ask of a short move
         self.lead: dict[str, float] = {}  # per kind: how much earlier (s) to let go
-        self.moves = 0
-        self.corrections = 0  # moves after one that went past or the wrong way
         self.stuck = 0
 
     # -- what the operator sees
@@ -151,7 +149,6 @@ class SimulatedOperator:
             if self.session.now - start > timeout_s:
                 raise OperatorGaveUp(f"{axis}: error {e:+.4f} > {tol} after {timeout_s:g} s")
             sign = 1 if e > 0 else -1
-            self.moves += 1
             self.log(f"{self.session.now:7.2f} s  {axis} {e:+.4f} (tolerance {tol:g})")
             yield from self.think()
             v = self.speed[kind] * self.hand.scale
@@ -170,8 +167,6 @@ class SimulatedOperator:
                     rate = self.profile.anticipation  # novices learn it more slowly
                     lead = self.lead.get(kind, 0.0) + rate * (past if past > 0 else 0.5 * past) / v
                     self.lead[kind] = float(np.clip(lead, 0.0, MAX_LEAD_S))
-                if sign * float(error()) < -tol:
-                    self.corrections += 1  # past the goal: a correction follows
             else:
                 exact = not self.hand.tool_frame  # a pendant step moves its increment
                 gain = 1.0 if exact else self.gain.get(kind, 1.0)
@@ -219,7 +214,6 @@ class SimulatedOperator:
             return False
         reached = False
         if -sign * went(self.measure(axis)) > WRONG_WAY[kind]:
-            self.corrections += 1
             self.log(f"{axis}: going the wrong way, let go")  # a reaction time after seeing it
         elif sign * float(error()) > seen:
             self.stuck += 1
@@ -358,8 +352,8 @@ class SimulatedOperator:
             tilt = math.radians(degrees)
             yield from self.align("rx", lambda t=tilt: t - self.tilt(), math.radians(6))
             try:
-                yield Until(lambda: self.task.state().in_cup <= 1 or self.task.succeeded(), 20.0,
-                            "the cup empty")  # fmt: skip
+                # the trial runner ends the trial on success; the operator watches the cup
+                yield Until(lambda: self.task.state().in_cup <= 1, 20.0, "the cup empty")
                 return
             except Timeout:
                 self.log(f"at {degrees} deg the cup still holds {self.task.state().in_cup}")

@@ -26,11 +26,16 @@ from wovenskin.io import atomic_write_text
 from wovenskin.reproduce.paper import PAPER_PARTICIPANTS, PAPER_TABLES, paper_reduction
 from wovenskin.study.document import Block, Bullets, Heading, Image, Table, Text
 from wovenskin.study.reader import TrialResult, read_trials
-from wovenskin.study.report import report_blocks, write_report
+from wovenskin.study.report import SIMULATED_BANNER, report_blocks, write_report
 from wovenskin.study.simulate import TrialRun, simulate_study
 from wovenskin.study.tables import fmt, fmt_mean_std, reduction, summarise
 
 INTERFACES = ("skin", "keyboard", "pendant")
+SIMULATED = Text(SIMULATED_BANNER)  # the study report's banner: this report says it itself
+PLOT_CAPTIONS = {
+    "box": "{task}: time and commands per interface and expertise, simulated trials",
+    "paths": "{task}: TCP paths of one simulated operator, top view",
+}
 TASK_TITLES = {"pick_place": "Table I: pick-and-place", "pour": "Table II: pouring"}
 
 
@@ -246,9 +251,11 @@ def study_section(
         study, trials, [], warnings, {t: [] for t in config.tasks}, synthetic=False
     )
     blocks += [Heading("Statistics of the simulated study", 3)]
-    blocks += [_demoted(b) for b in study_blocks[2:]]  # after its title and its summary
+    blocks += [_demoted(b) for b in study_blocks if b not in (study_blocks[0], SIMULATED)]
     for image in report.images:
-        blocks.append(Image(f"study/report/{image.name}", image.stem.replace("-", ": ")))
+        task, kind = image.stem.rsplit("-", 1)
+        caption = PLOT_CAPTIONS.get(kind, kind).format(task=task)
+        blocks.append(Image(f"study/report/{image.name}", caption))
     figures["warnings"] = warnings
     return blocks, figures
 
