@@ -1,7 +1,8 @@
 """The action mapping: which gesture drives which twist or named pose, and how fast.
 
 A TOML file (the packaged ``default_mapping.toml`` is docs/gestures.md's table) holds a
-``[motion]`` table (frame, speeds, acceleration and jerk limits; angles in degrees), a
+``[motion]`` table (frame, speeds, acceleration and jerk limits; angles in degrees; its
+``[motion.profile]`` is the gestures' :class:`~wovenskin.control.profile.SpeedProfile`), a
 ``[poses]`` table (``hold_to_run``) and a ``[gestures]`` table mapping each gesture name to
 ``"translate <axis>"``, ``"rotate <axis>"``, ``"pose initial|home"`` or ``"none"``.
 :meth:`ActionMapping.load` validates it and reports the first problem as one line naming
@@ -28,6 +29,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from wovenskin.control.profile import SpeedProfile, profile_from_table
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import CLASS_NAMES, INVALID
 from wovenskin.robots.base import Pose
@@ -51,12 +53,13 @@ class MotionSettings:
     frame: Literal["tool", "base", "skin"] = "tool"
     linear_speed: float = 0.05  # m/s
     angular_speed: float = math.radians(15.0)  # rad/s
-    linear_accel: float = 0.25  # m/s^2
-    angular_accel: float = math.radians(90.0)  # rad/s^2
-    linear_jerk: float = 2.5  # m/s^3
-    angular_jerk: float = math.radians(900.0)  # rad/s^3
+    linear_accel: float = 0.5  # m/s^2
+    angular_accel: float = math.radians(150.0)  # rad/s^2
+    linear_jerk: float = 10.0  # m/s^3
+    angular_jerk: float = math.radians(3000.0)  # rad/s^3
     skin_up: tuple[float, float, float] = SKIN_UP_IN_TOOL  # the patch's up, tool frame
     skin_right: tuple[float, float, float] = SKIN_RIGHT_IN_TOOL  # its right, tool frame
+    profile: SpeedProfile = field(default_factory=SpeedProfile)  # a gesture's speed in time
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
@@ -248,9 +251,11 @@ def _unit(values: Any, name: str) -> np.ndarray:
 
 
 def _motion_settings(motion: dict[str, Any], source: str) -> MotionSettings:
-    allowed = {"frame", "skin_up", "skin_right", *_LINEAR_KEYS, *_ANGULAR_KEYS}
+    allowed = {"frame", "skin_up", "skin_right", "profile", *_LINEAR_KEYS, *_ANGULAR_KEYS}
     _check_keys(motion, allowed, "motion.", source)
     values: dict[str, Any] = {}
+    if "profile" in motion:
+        values["profile"] = profile_from_table(motion["profile"], f"{source}: motion.profile")
     frame = motion.get("frame", "tool")
     if frame not in FRAMES:
         raise ConfigError(f"{source}: motion.frame must be 'tool', 'base' or 'skin', got {frame!r}")

@@ -12,7 +12,7 @@ overshoot whenever the limits allow it.
 A release is different: when a part's target becomes zero (the command ended), that part
 brakes at once along its current direction, whatever its acceleration was, with a constant
 deceleration of ``max(acceleration limit, speed at release / release_stop_s)``, so it is at
-rest within ``release_stop_s`` (0.1 s by default) from any speed. Like a real arm's stop
+rest within ``release_stop_s`` (0.05 s by default) from any speed. Like a real arm's stop
 ramp this is not jerk-limited: a jerk-limited release first has to undo the acceleration
 of a start still in progress (a 0.2 s command kept speeding up for 0.1 s after its end and
 moved for 0.37 s), and from the speed caps the start's acceleration limit would need a
@@ -28,7 +28,7 @@ import numpy as np
 from wovenskin.control.mapping import MotionSettings
 
 LANDED = 1e-12  # m/s or rad/s: closer than this to the target counts as on it
-RELEASE_STOP_S = 0.1  # s: a released part brakes to rest within this time from any speed
+RELEASE_STOP_S = 0.05  # s: a released part brakes to rest within this time from any speed
 
 
 class TwistShaper:

@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from wovenskin.control.gesture_motion import GestureMotion
 from wovenskin.control.mapping import ActionMapping, PoseAction, TwistAction
 from wovenskin.control.motion import TwistShaper
 from wovenskin.control.poses import PoseStore
@@ -52,6 +53,7 @@ from wovenskin.control.session_state import (
 from wovenskin.control.session_views import SessionViews
 from wovenskin.control.trace import TraceWriter
 from wovenskin.errors import ConfigError
+from wovenskin.recognition.arbiter import LIFT_OFF
 from wovenskin.robots.base import Robot, RobotError
 
 log = logging.getLogger(__name__)
@@ -99,6 +101,7 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self.poses = poses
         self.safety = SafetyLayer(robot, limits, clock=self._clock)
         self.shaper = TwistShaper(self.mapping.settings)
+        self.gesture_motion = GestureMotion(self.mapping)
         self.trace = trace
         self.recorder = recorder
         self._on_message = on_message or (lambda _message: None)
@@ -185,6 +188,7 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self._user_stop = True
         self._pose_move = None
         self.shaper.reset()
+        self.gesture_motion.cancel()
         self.safety.emergency_stop(reason)
         self._report_new_stops()
 
@@ -371,6 +375,11 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
             self.count_command(float(change.t), "skin", change.gesture, "gesture")
         self.state.gesture = change.gesture
         self.state.gesture_since = float(change.t)
+        if change.gesture is not None:
+            action = self.mapping.action_for(change.gesture)
+            self.gesture_motion.started(action, self.gesture_frame, float(change.t))
+        else:
+            self.gesture_motion.ended(float(change.t), lifted=change.reason == LIFT_OFF)
         name = change.gesture or "none"
         self._message(f"{change.t:8.2f} s  command {name} ({change.reason})")
         if self.recorder is not None:
@@ -413,6 +422,7 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         if self.safety.stopped:
             self._pose_move = None
             self.shaper.reset()
+            self.gesture_motion.cancel()
             self.state.twist = np.zeros(6)
             self.state.action = "stopped"
             return
@@ -428,18 +438,41 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
                     self.safety.heartbeat_command(t)
                     return
             action = None  # reached, or the move could not start: hold still
+        skin = label is not None and label == self.state.gesture
+        if label is not None and not skin:
+            self.gesture_motion.cancel()  # another input took over
         moves = isinstance(action, TwistAction | JointJog)
-        self._send_twist(label if moves else None, action, frame, t, dt)
+        self._send_twist(label if moves else None, action, frame, t, dt, skin)
 
     def _send_twist(
-        self, label: str | None, action: Any, frame: str | None, t: float, dt: float
+        self,
+        label: str | None,
+        action: Any,
+        frame: str | None,
+        t: float,
+        dt: float,
+        skin: bool = False,
     ) -> None:
         robot = self.state.robot
         target = np.zeros(6)
+        doing = f"twist {label}" if label is not None else "-"
         if label is not None and robot is not None:
             target = self._target_twist(action, frame, robot) * self.speed_scale
-        twist = self.shaper.update(target, min(dt, self.settings.max_shaper_dt_s))
-        self.state.action = f"twist {label}" if label is not None else "-"
+            if skin:  # the gestures' speed profile (control/profile.py)
+                target = target * self.gesture_motion.speed_fraction(t)
+        elif robot is not None and self.gesture_motion.nudging:
+            s = self.mapping.settings
+            nudge = self.gesture_motion.nudge_target(
+                t, robot.tcp, self.shaper.twist, self.shaper.release_stop_s,
+                (s.linear_accel, s.angular_accel),
+            )  # fmt: skip
+            if nudge is not None:
+                target = nudge * self.speed_scale
+                doing = "nudge"
+        step = min(dt, self.settings.max_shaper_dt_s)
+        twist = self.shaper.update(target, step)
+        self.gesture_motion.add_way(twist, step)
+        self.state.action = doing
         try:
             self.safety.send_twist(twist)
         except (RobotError, ValueError) as exc:

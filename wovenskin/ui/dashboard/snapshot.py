@@ -105,6 +105,23 @@ def recognition_part(session: Any) -> dict:
         "command_for_s": round(session.now - since, 2) if state.gesture and since else 0.0,
         "action": state.action,
         "unsure": getattr(state, "unsure", ""),
+        "motion": motion_part(session),
+    }
+
+
+def motion_part(session: Any) -> dict:
+    """How fast the arm is commanded to move now (mm/s, deg/s) and, while a gesture's
+    command runs, its speed profile's share of full speed (control/profile.py)."""
+    twist = np.asarray(getattr(session.state, "twist", np.zeros(6)), dtype=float)
+    motion = getattr(session, "gesture_motion", None)
+    fraction = None
+    if motion is not None and session.state.gesture is not None:
+        fraction = round(float(motion.speed_fraction(float(session.now))), 3)
+    return {
+        "linear_mm_s": round(1000.0 * float(np.linalg.norm(twist[:3])), 1),
+        "angular_deg_s": round(float(np.degrees(np.linalg.norm(twist[3:]))), 1),
+        "fraction": fraction,
+        "nudging": bool(motion is not None and motion.nudging),
     }
 
 
