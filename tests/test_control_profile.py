@@ -151,3 +151,19 @@ def test_the_constant_profile_has_no_nudge_and_full_speed_at_once(blank_stream, 
     assert way < 0.05  # no command time, no motion
     way, _, _ = scripted_command(blank_stream, "swipe_up", 0.5, mapping=mapping)
     assert way > 18.0  # 0.5 s at 50 mm/s less the start's ramp
+
+
+def test_wovenskin_profile_prints_and_draws_the_mapping_profile(tmp_path) -> None:
+    from typer.testing import CliRunner
+
+    from wovenskin.cli import app
+
+    plot = tmp_path / "profile.png"
+    result = CliRunner().invoke(app, ["profile", "--plot", str(plot)])
+    assert result.exit_code == 0, result.output
+    assert "graded" in result.output and "107.0" in result.output  # 2.5 s held: 107 mm
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[motion.profile]\nkind = "fast"\n')
+    result = CliRunner().invoke(app, ["profile", "--mapping", str(bad)])
+    assert result.exit_code == 2 and "profile kind" in result.output

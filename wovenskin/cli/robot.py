@@ -307,3 +307,27 @@ def _pose_line(q, tcp) -> str:
         f"joints [{joints}] deg; TCP x {x:.1f} y {y:.1f} z {z:.1f} mm, "
         f"quat [{w:.4f}, {qx:.4f}, {qy:.4f}, {qz:.4f}]"
     )
+
+
+@app.command()
+@user_errors
+def profile(
+    mapping: Path = typer.Option(None, help="A mapping file (default: the packaged one)."),
+    plot: Path = typer.Option(None, help="Also draw the profile into this PNG."),
+) -> None:
+    """How far and how fast one gesture moves the tool for how long it is held."""
+    from rich.table import Table
+
+    from wovenskin.control.mapping import ActionMapping
+    from wovenskin.ui.profile_plot import plot_profile, profile_rows
+
+    loaded = ActionMapping.load(mapping)
+    speed = loaded.settings.profile
+    table = Table(title=f"speed profile: {speed.kind} ({loaded.source})")
+    for column in ("held (s)", "share of full speed", "speed (mm/s)", "way (mm)", "turn (deg)"):
+        table.add_column(column, justify="right")
+    for held, fraction, mm_s, way, turn in profile_rows(loaded):
+        table.add_row(f"{held:.1f}", f"{fraction:.0%}", f"{mm_s:.0f}", f"{way:.1f}", f"{turn:.1f}")
+    console.print(table)
+    if plot is not None:
+        console.print(f"wrote {plot_profile(loaded, plot)}", highlight=False)

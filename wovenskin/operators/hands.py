@@ -41,10 +41,8 @@ ROTATIONS = ("rx", "ry", "rz")
 TAP_S = 0.08  # the shortest key press
 STEP_SIZES = (10, 5, 1)  # the pendant's increments, mm or deg
 MAX_GESTURE_TRIES = 4
-SPEED_LEVELS = (1.0, 0.5, 0.25, 0.1)  # the speed control's settings a person picks
-SLOW_NUDGE_S = 2.5  # a short move that would take longer at the set speed: speed up
-FULL_SPEED_BEYOND = {"linear": 0.06, "angular": 0.35}  # m, rad: ways worth full speed
-FLICK_S = 0.45  # a flick's command lasts about this long (the motion's end, lift, release)
+LIFT_LAG_S = 0.3  # first guess of how long a gesture's command lasts after the lift
+LIFT_LAG_LEARNING = 0.3  # share of the gap to the lag just seen that a short move learns
 
 
 def tool_axes(session: Any) -> np.ndarray:
@@ -214,6 +212,8 @@ class SkinHand(Hand):
             if isinstance(action, TwistAction):
                 self.gestures[str(action)] = name
         self._pending: list[InputEvent] = []
+        self.speed_profile = session.mapping.settings.profile
+        self.lift_lag = LIFT_LAG_S  # learnt: how long a command lasts after the lift (s)
         self.on_skin = False  # the hand is at the skin (not at the gripper button)
         self.misread: list[tuple[str, str | None]] = []  # (performed, recognised)
 
@@ -229,12 +229,9 @@ class SkinHand(Hand):
     def press(self, axis: str, sign: int, distance: float = math.inf) -> Plan:
         """Perform the gesture and hold it once the arm takes it; a misread gesture is
         lifted and performed again (each try a command when it activated something).
-        The speed control goes back to full speed first only for a long way
-        (``distance`` over :data:`FULL_SPEED_BEYOND`): near a goal it stays as it was set."""
-        sent = 0
-        if distance > FULL_SPEED_BEYOND[self.kind(axis)]:
-            sent = yield from self._scale(1.0)
-        return sent + (yield from self._perform(axis, sign))
+        The speed profile does what a speed control would: a held gesture starts fine and
+        speeds up, so the hand never stops to set a speed."""
+        return (yield from self._perform(axis, sign))
 
     def _perform(self, axis: str, sign: int) -> Plan:
         gesture = self.gestures[self._command(axis, sign)]
@@ -274,30 +271,26 @@ class SkinHand(Hand):
         self.skin.lift()
 
     def nudge(self, axis: str, sign: int, amount: float) -> Plan:
-        """A flick: the gesture lifted as soon as the arm takes it, at a speed scaled down
-        (the dashboard's speed control) when even a flick would go too far."""
+        """A short move: the gesture held for as long as the mapping's speed profile takes
+        to cover ``amount`` less how late a lift acts, then lifted; a flick (lifted as soon
+        as the arm takes it) when that is no time at all, which the profile turns into at
+        least its nudge.  The hand learns how late its lifts act, move by move."""
         kind = self.kind(axis)
-        needed = next((s for s in SPEED_LEVELS if s * self.speed[kind] * FLICK_S <= amount),
-                      SPEED_LEVELS[-1])  # fmt: skip
-        slow = amount / (self.scale * self.speed[kind]) > SLOW_NUDGE_S
-        sent = yield from self._scale(needed if slow else min(needed, self.scale))
-        scale = self.scale
         taken = yield from self._perform(axis, sign)
         if taken:
-            yield Sleep(max(0.0, self.held_for(axis, amount / scale) - FLICK_S))
+            since = self.session.state.gesture_since or self.session.now
+            hold = self.speed_profile.hold_for(amount, self.speed[kind])
+            yield Sleep(max(0.0, hold - (self.session.now - since) - self.lift_lag))
+        lifted_at = self.session.now
         self.skin.lift()
-        return sent + taken
-
-    def _scale(self, scale: float) -> Plan:
-        """Set the speed control to ``scale`` (a command) if it is not there."""
-        if abs(scale - self.scale) < 1e-9:
-            return 0
-        yield from self._lifted()
-        yield Sleep(self.profile.home_s + self.profile.point_s)
-        self.on_skin = False
-        self.scale = scale
-        self._pending.append(InputEvent("speed", "speed", "dashboard", amount=scale))
-        return 1
+        if taken:
+            try:
+                yield Until(lambda: self.session.state.gesture is None, 5.0, "the command ended")
+            except Timeout:
+                return taken
+            lag = self.session.now - lifted_at
+            self.lift_lag += LIFT_LAG_LEARNING * (lag - self.lift_lag)
+        return taken
 
     def gripper(self) -> Plan:
         yield from self._lifted()
