@@ -71,6 +71,7 @@ class SimulatedOperator:
         self.trial = 1
         self.gain: dict[str, float] = {}  # per kind: how much more to ask of a short move
         self.lead: dict[str, float] = {}  # per kind: how much earlier (s) to let go
+        self.release_speed: dict[str, float] = {}  # per kind: the speed seen when letting go
         self.stuck = 0
 
     # -- what the operator sees
@@ -165,7 +166,11 @@ class SimulatedOperator:
                 if reached:  # learn how late a release acts: let go earlier or later
                     past = -sign * float(error())  # > 0: beyond the goal
                     rate = self.profile.anticipation  # novices learn it more slowly
-                    lead = self.lead.get(kind, 0.0) + rate * (past if past > 0 else 0.5 * past) / v
+                    seen_v = max(self.release_speed.get(kind, v), 0.2 * v)
+                    lead = (
+                        self.lead.get(kind, 0.0)
+                        + rate * (past if past > 0 else 0.5 * past) / seen_v
+                    )
                     self.lead[kind] = float(np.clip(lead, 0.0, MAX_LEAD_S))
             else:
                 exact = not self.hand.tool_frame  # a pendant step moves its increment
@@ -187,9 +192,12 @@ class SimulatedOperator:
         arm's braking and how late it has learnt its releases act with this interface
         (a lifted gesture ends its command later than a released key); let go a reaction
         time later.  The wrong way: let go and correct; no motion for :data:`STUCK_S`:
-        let go (three in a row: give up).  Returns whether it let go for the goal."""
+        let go (three in a row: give up).  The person judges by the speed it sees the arm
+        move at (an arm still speeding up, as a held gesture's does, is let go later than
+        one at full speed).  Returns whether it let go for the goal."""
         p = self.profile
-        seen = p.anticipation * (brake + v * p.reaction_s) + v * self.lead.get(kind, 0.0) + aim
+        lead = self.lead.get(kind, 0.0)
+        accel = v * v / (2.0 * brake) if brake > 0 else self.accel[kind]
         origin = self.measure(axis)
         e0 = float(error())
         last = [origin, self.session.now]
@@ -198,9 +206,18 @@ class SimulatedOperator:
             moved = now - origin
             return wrap(moved) if axis in ROTATIONS else moved
 
+        def seen() -> float:
+            twist = self.robot.tcp_twist
+            speed = float(np.linalg.norm(twist[3:] if kind == "angular" else twist[:3]))
+            speed = min(speed, v)
+            self.release_speed[kind] = speed
+            return p.anticipation * (speed * speed / (2.0 * accel) + speed * p.reaction_s) + (
+                speed * lead + aim
+            )
+
         def look() -> bool:
             now = self.measure(axis)
-            if sign * float(error()) <= seen:
+            if sign * float(error()) <= seen():
                 return True
             if -sign * went(now) > WRONG_WAY[kind]:
                 return True
@@ -215,7 +232,7 @@ class SimulatedOperator:
         reached = False
         if -sign * went(self.measure(axis)) > WRONG_WAY[kind]:
             self.log(f"{axis}: going the wrong way, let go")  # a reaction time after seeing it
-        elif sign * float(error()) > seen:
+        elif sign * float(error()) > seen():
             self.stuck += 1
             held = ", ".join(self._holding()) or "nothing said"
             self.log(f"{axis}: no motion while pressed ({held})")
