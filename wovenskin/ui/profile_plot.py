@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from wovenskin.control.mapping import ActionMapping
+from wovenskin.control.profile import SpeedProfile
 
 HOLD_TIMES_S = (0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.5)
 
@@ -40,8 +41,6 @@ def plot_profile(mapping: ActionMapping, path: str | Path, compare_constant: boo
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from wovenskin.control.profile import SpeedProfile
 
     settings = mapping.settings
     times = np.linspace(0.0, 2.5, 501)
