@@ -254,7 +254,7 @@ def test_a_sender_clock_that_jumps_ahead_cannot_hold_back_the_touch():
         source.close()
 
 
-def test_a_lifted_outside_fingertip_is_sensed_for_a_moment_then_goes():
+def test_a_lifted_outside_fingertip_goes_at_once():
     source = SimulatedSkinSource(seed=2, autonomous=False, lookahead_s=0.03)
     source.start()
     try:
@@ -266,9 +266,10 @@ def test_a_lifted_outside_fingertip_is_sensed_for_a_moment_then_goes():
         while source.touching and time.monotonic() - lifted_at < 2.0:
             _frames_for(source, 0.01)
         gone_after = time.monotonic() - lifted_at
-        hover = source.physics.hover_tau_s
         assert not source.touching
-        assert gone_after > 2 * hover  # the hover tail (4 time constants) was rendered
+        # the force is gone in the next frame, the fringe field within 4 x 5 ms; the rest
+        # is the lookahead already rendered and the polling (generous for a busy machine)
+        assert gone_after < 1.0
     finally:
         source.close()
 
@@ -375,7 +376,9 @@ def test_sparse_samples_on_a_line_stay_on_the_line():
     assert off_line.max() < 1e-6
     along = 0.6 * (path[:, 0] - 20.0) + 0.8 * (path[:, 1] - 30.0)
     assert np.all(np.diff(along) >= -1e-9)  # onward only, no overshoot and back
-    assert along[-1] == pytest.approx(60.0)
+    # the last frame that presses is the one before the fingertip reaches the last sample,
+    # where it lifts: a lift-off plays at once
+    assert along[-1] == pytest.approx(60.0, abs=0.5)
 
 
 def test_performances_are_rendered_in_short_pieces():

@@ -122,3 +122,16 @@ def test_a_lift_off_right_after_a_motion_plays_the_motion_first():
     assert moving[-1].touches[1].y_mm == pytest.approx(60.0)  # the whole slide plays
     assert moving[-1].t - moving[0].t == pytest.approx(0.2)
     assert touches.timeline[-1].t == pytest.approx(moving[-1].t)  # then the lift, at once
+
+
+def test_a_lift_off_plays_at_once():
+    """The sender reports a lift when the fingertip has left: its force is gone in the
+    next frame, and its fringe field a few frames later (no 20 ms ramp, no hover tail)."""
+    touches = OutsideTouches(FS, hover_tau_s=0.05)
+    touches.add({1: Fingertip(50.0, 50.0, 1.5)}, None, 0.0)
+    track = touches.tracks(0, 40)[0]
+    assert track.force_n[-1] == pytest.approx(1.5)
+    touches.add({}, None, 40 / FS)
+    after = touches.tracks(40, 20)
+    assert after[0].force_n[0] == 0.0
+    assert after[0].presence[4] < 0.5 and not touches.active

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from wovenskin.sim.contact import ContactTrack, NoiseBurst, hertz_pressure_kpa
-from wovenskin.sim.physics import SkinModel
+from wovenskin.sim.physics import LIFT_HOVER_TAU_S, SkinModel
 from wovenskin.sim.skin_physics import TYPICAL_GAIN_PF, SkinPhysics
 from wovenskin.skin.layout import SkinLayout
 
@@ -220,6 +220,19 @@ def test_proximity_is_felt_before_landing_and_around_the_contact():
     assert d[-1, 5, 7] > 0  # fringe field two columns away
 
 
+def test_a_lifted_fingertip_fades_within_a_few_milliseconds():
+    """A finger slows down as it approaches but accelerates away when it lifts: the hand is
+    sensed tens of milliseconds before landing, a lifted fingertip for a few only."""
+    model = SkinModel(quiet(proximity_fraction=0.05, hover_tau_s=0.06), LAYOUT)
+    x, y = channel_centre(5, 5)
+    track = finger(80, x, y, 1.0, start=30)
+    track.force_n[40:] = 0.0  # lands at frame 30, lifts at frame 40
+    proximity = change(model, [track], 80)[:, 5, 7]  # two columns away: fringe field only
+    assert proximity[24] > 0.5 * proximity[29]  # 30 ms before landing: still well sensed
+    assert proximity[44] < 0.03 * proximity[39]  # 25 ms after the lift: gone
+    assert LIFT_HOVER_TAU_S <= 0.01
+
+
 def test_proximity_can_lower_the_reading_in_a_mutual_capacitance_skin():
     model = SkinModel(quiet(proximity_fraction=-0.015, hover_tau_s=0.04), LAYOUT)
     x, y = channel_centre(5, 5)
@@ -400,13 +413,15 @@ def test_response_is_bounded_for_any_contact(x, y, force, a, ratio, angle):
 def test_an_explicit_presence_renders_like_the_one_derived_from_the_force():
     physics = replace(SkinPhysics().without_noise(), proximity_fraction=0.05)
     n, hover = 60, physics.hover_tau_s * FS
+    lift = LIFT_HOVER_TAU_S * FS  # a lifted fingertip fades faster than one approaches
     force = np.zeros(n)
     force[20:40] = 1.0
     x, y = np.full(n, 45.0), np.full(n, 63.0)
     derived = ContactTrack(x, y, force, 5.0, 4.0)
     frames = np.arange(n)
-    distance = np.maximum(np.maximum(20 - frames, frames - 39), 0)
-    explicit = ContactTrack(x, y, force, 5.0, 4.0, presence=np.exp(-distance / hover))
+    before = np.exp(-np.maximum(20 - frames, 0) / hover)
+    after = np.exp(-np.maximum(frames - 39, 0) / lift)
+    explicit = ContactTrack(x, y, force, 5.0, 4.0, presence=np.minimum(before, after))
     a = SkinModel(physics, LAYOUT, seed=3).render([derived], n)
     b = SkinModel(physics, LAYOUT, seed=3).render([explicit], n)
     np.testing.assert_allclose(a, b, atol=1e-6)

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from wovenskin.io import atomic_write_bytes
+from wovenskin.signal.config import FLAG_ONLY_SETTINGS
 
 META_FILE = "meta.json"
 WEIGHTS_FILE = "model.pt"
@@ -58,10 +59,11 @@ def _same_value(a: Any, b: Any) -> bool:
 
 
 def conditioning_differences(expected: Mapping[str, Any], given: Mapping[str, Any]) -> list[str]:
-    """Human-readable ``key: expected X, got Y`` lines for every setting that differs."""
+    """Human-readable ``key: expected X, got Y`` lines for every setting that differs
+    (settings that never change the model's input, ``FLAG_ONLY_SETTINGS``, do not count)."""
     missing = object()
     out = []
-    for key in sorted(set(expected) | set(given)):
+    for key in sorted((set(expected) | set(given)) - FLAG_ONLY_SETTINGS):
         a, b = expected.get(key, missing), given.get(key, missing)
         if a is missing or b is missing or not _same_value(a, b):
             shown_a = "unset" if a is missing else repr(a)

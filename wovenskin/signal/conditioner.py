@@ -11,12 +11,16 @@
    detection only),
 5. contact detection: common-mode removal, hysteresis (with fast release) and blob
    seeding (:mod:`~wovenskin.signal.contacts`),
-6. drift tracking of ``C0`` once per block of frames, from the filtered readings and
+6. lift detection on the relative change of step 3 (:mod:`~wovenskin.signal.lift`): a
+   lifted hand releases the skin a frame or two after it leaves, before the moving
+   average has seen it,
+7. drift tracking of ``C0`` once per block of frames, from the filtered readings and
    the active channels,
 
-then debounces "touched" and extracts contact blobs for the whole chunk.  Frames are cut
-only at baseline-block boundaries, and every step carries its state, so feeding a stream
-one frame at a time, all at once or in any chunks gives bit-identical results.
+then debounces "touched" (cleared at once where step 6 saw a lift) and extracts contact
+blobs for the whole chunk.  Frames are cut only at baseline-block boundaries, and every
+step carries its state, so feeding a stream one frame at a time, all at once or in any
+chunks gives bit-identical results.
 
 :func:`condition_recording` calibrates on the first ``calibration_s`` of a recording and
 conditions all of it, calibration frames included.
@@ -45,6 +49,7 @@ from wovenskin.signal.calibration import Calibration, calibrate, glitch_threshol
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.signal.contacts import Contact, ContactDetector
 from wovenskin.signal.filters import CausalMovingAverage, SpikeFilter, StepGlitchFilter
+from wovenskin.signal.lift import LiftDetector, LiftSettings, raw_noise
 
 CALIBRATING = "calibrating"  # LiveConditioner.state values
 RUNNING = "running"
@@ -152,6 +157,16 @@ class Conditioner:
             else None
         )
         self._detector = ContactDetector.from_calibration(calibration.noise, self.dead, config)
+        lift = LiftSettings.from_config(config)
+        self._lift = (
+            LiftDetector(
+                raw_noise(calibration.noise, calibration.step_noise, config.window_frames),
+                ~self.dead,
+                lift,
+            )
+            if lift.enabled
+            else None
+        )
         self._next_index = 0
 
     @property
@@ -181,7 +196,7 @@ class Conditioner:
         if n == 0:
             return ConditionedFrames.empty(self.dead, self.baseline, start)
         if n <= self._tracker.frames_to_block_end:  # one block: the live, per-frame case
-            signal, active, invalid, saturated = self._condition_segment(x)
+            signal, active, lifted, invalid, saturated = self._condition_segment(x)
             labels = self._detector.last_labels
         else:
             segments = []
@@ -191,17 +206,18 @@ class Conditioner:
                 segments.append((*self._condition_segment(x[pos:stop]), self._detector.last_labels))
                 pos = stop
             lengths = [len(s[0]) for s in segments]
-            labels = _join_labels([s[4] for s in segments], lengths)
+            labels = _join_labels([s[5] for s in segments], lengths)
             signal = np.concatenate([s[0] for s in segments])
             active = np.concatenate([s[1] for s in segments])
-            invalid = _join_flags([s[2] for s in segments], lengths, self.shape)
-            saturated = _join_flags([s[3] for s in segments], lengths, self.shape)
+            lifted = np.concatenate([s[2] for s in segments])
+            invalid = _join_flags([s[3] for s in segments], lengths, self.shape)
+            saturated = _join_flags([s[4] for s in segments], lengths, self.shape)
         self._next_index += n
         if invalid is None:
             invalid = np.zeros(x.shape, dtype=bool)
         if saturated is None:
             saturated = np.zeros(x.shape, dtype=bool)
-        touched = self._detector.update_touched(active)
+        touched = self._detector.update_touched(active, lifted)
         if active.any():
             contacts = self._detector.contacts(signal, active, labels)
             n_contacts = np.array([len(c) for c in contacts], dtype=np.int64)
@@ -223,9 +239,9 @@ class Conditioner:
 
     def _condition_segment(
         self, x: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
-        """Steps 1-6 on frames ``x`` within one baseline block: ``(signal, active, invalid,
-        saturated)`` with the flags ``None`` when no reading was bad."""
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Steps 1-7 on frames ``x`` within one baseline block: ``(signal, active, lifted,
+        invalid, saturated)`` with the flags ``None`` when no reading was bad."""
         clean, invalid, saturated = self._tracker.guard(x)
         if self._glitches is not None:
             clean = self._glitches.apply(clean)
@@ -235,8 +251,12 @@ class Conditioner:
         smoothed = self._smoother.apply(relative)
         fast = self._fast.apply(relative) if self._fast is not None else None
         active = self._detector.update_active(smoothed, fast)
+        if self._lift is not None:
+            lifted = self._lift.update(relative, active)
+        else:
+            lifted = np.zeros(x.shape[0], dtype=bool)
         self._tracker.accumulate(clean, active)
-        return smoothed, active, invalid, saturated
+        return smoothed, active, lifted, invalid, saturated
 
 
 def _join_labels(labels: list[np.ndarray | None], lengths: list[int]) -> np.ndarray | None:

@@ -16,6 +16,11 @@ from dataclasses import asdict, dataclass
 from wovenskin.errors import ConfigError
 from wovenskin.settings import from_dict
 
+FLAG_ONLY_SETTINGS = frozenset({"lift_fraction", "lift_arm_sigma", "lift_sigma"})
+"""Settings that change only the ``touched`` flag, never the ``signal`` (nor ``active``, nor
+the baseline): a recogniser's input does not depend on them, so a checkpoint need not have
+been trained with them (one stored before they existed has none)."""
+
 
 @dataclass(frozen=True)
 class ConditioningConfig:
@@ -76,6 +81,22 @@ class ConditioningConfig:
     - ``seeded_blobs``: a channel that passes the hysteresis is active only when its blob
       holds a channel above the on threshold in that frame (before ``rearm_fraction``), so
       a lone channel lingering just above its off threshold cannot keep itself frozen.
+
+    Lift detection on the raw relative change, before the moving average
+    (:mod:`~wovenskin.signal.lift`): the skin counts as released, without waiting for the
+    moving average and the debounce, on the first frame in which the raw change summed
+    over the recently pressed channels falls below ``lift_fraction`` of the lowest it
+    came (relative to its recent peak, memory ``peak_memory_s``) while the hand was surely
+    on the skin, and no channel next to an active one still reads above ``lift_fraction``
+    of its own recent peak.  These settings change only ``touched``
+    (:data:`FLAG_ONLY_SETTINGS`):
+
+    - ``lift_fraction``: that fraction; 0 turns the lift detector off.
+    - ``lift_arm_sigma``: that lowest level must stand at least this many noise sds of the
+      summed raw noise of those channels above zero (a light finger on a noisy skin is
+      released by the moving average alone).
+    - ``lift_sigma``: a channel counts as recently pressed, or as still holding, only
+      above this many sds of its raw (one frame, unsmoothed) noise.
 
     Baseline (drift) tracking, updated once per block of frames aligned to the absolute
     frame index (see :mod:`wovenskin.signal.baseline` for the rules):
@@ -157,6 +178,9 @@ class ConditioningConfig:
     peak_memory_s: float = 1.0
     debounce_on_s: float = 0.015
     debounce_off_s: float = 0.03
+    lift_fraction: float = 0.4
+    lift_arm_sigma: float = 6.0
+    lift_sigma: float = 3.0
     connectivity: int = 4
     seeded_blobs: bool = True
     common_mode_quantile: float = 0.25
@@ -216,6 +240,8 @@ class ConditioningConfig:
             "frozen_drift_tau_s",
             "common_drift_max_drop_rel_per_s",
             "disturbed_max_s",
+            "lift_arm_sigma",
+            "lift_sigma",
         )
         for name in positive:
             value = getattr(self, name)
@@ -267,6 +293,8 @@ class ConditioningConfig:
             raise ConfigError(f"common_drift must be true or false, got {self.common_drift!r}")
         if self.common_drift_min_fraction > 1:
             raise ConfigError("common_drift_min_fraction must be at most 1")
+        if not 0 <= self.lift_fraction < 1:
+            raise ConfigError(f"lift_fraction must be in [0, 1), got {self.lift_fraction!r}")
         if not 0 <= self.release_fraction <= self.rearm_fraction < 1:
             raise ConfigError(
                 "need 0 <= release_fraction <= rearm_fraction < 1, got "

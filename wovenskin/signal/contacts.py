@@ -406,13 +406,22 @@ class ContactDetector:
             release = release[None]
         return seed[None], on[None], off[None], release
 
-    def update_touched(self, active: np.ndarray) -> np.ndarray:
+    def update_touched(self, active: np.ndarray, lifted: np.ndarray | None = None) -> np.ndarray:
         """Debounced "something touches the skin" per frame of ``active`` ``(n, R, C)``.
+
+        ``lifted`` ``(n,)``, when given, marks the frames in which the raw signal shows
+        the hand lifted (:class:`~wovenskin.signal.lift.LiftDetector`): they are
+        untouched whatever ``active`` says, and turn the debounced state off (touched
+        again once a channel is active with ``lifted`` clear, after the usual
+        ``debounce_on_frames``).
 
         A small state machine over frames (the per-frame work is a few integer steps, so
         a plain loop beats array code for short chunks and stays fast for long ones).
         """
         n = active.shape[0]
+        if lifted is not None and lifted.shape != (n,):
+            raise ValueError(f"lifted has shape {lifted.shape}, expected ({n},)")
+        lift = [False] * n if lifted is None else lifted.tolist()
         any_active = [bool(active.any())] if n == 1 else active.reshape(n, -1).any(axis=1).tolist()
         touched = np.zeros(n, dtype=bool)
         state = self._touched
@@ -427,6 +436,8 @@ class ContactDetector:
             if now and run >= need_on:
                 state = True
             elif not now and run >= need_off:
+                state = False
+            if lift[i]:
                 state = False
             touched[i] = state
         self._touched = state

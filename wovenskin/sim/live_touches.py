@@ -2,8 +2,9 @@
 
 :class:`OutsideTouches` keeps the timeline of :class:`Fingertip` samples and turns it into
 contact tracks for :class:`~wovenskin.sim.physics.SkinModel`, frame by frame on the stream
-clock: fingertips land and lift over a short force ramp, slide between samples (along the
-curve through sparse ones) and are sensed a little before landing and after lifting.
+clock: fingertips land over a short force ramp and lift at once (the sender reports a lift
+when the fingertip has left), slide between samples (along the curve through sparse ones)
+and are sensed a little before landing and, for a few milliseconds, after lifting.
 :meth:`wovenskin.sim.live.SimulatedSkinSource.set_touches` says how the timing works.
 """
 
@@ -16,11 +17,12 @@ import numpy as np
 
 from wovenskin.sim.contact import ContactTrack
 from wovenskin.sim.person import Pad
+from wovenskin.sim.physics import LIFT_HOVER_TAU_S
 
-_TOUCH_RAMP_S = 0.02  # an outside fingertip reaches its force (or lifts) over this time
+_TOUCH_RAMP_S = 0.02  # an outside fingertip reaches its force over this time (a lift: 1 frame)
 MAX_TOUCH_FORCE_N = 10.0
 MAX_TOUCHES = 10
-_HOVER_TAIL_TAUS = 4.0  # a lifted outside fingertip is sensed for this many hover constants
+_HOVER_TAIL_TAUS = 4.0  # a lifted outside fingertip is sensed for this many lift constants
 TOUCH_JITTER_S = 0.03  # timestamped outside touches play at least this far behind their first
 MAX_TOUCH_JITTER_S = 0.3  # sample, and after late samples at most this far (see OutsideTouches)
 TOUCH_JITTER_MEMORY_S = 30.0  # a late sample's extra delay fades over this much stream time
@@ -326,11 +328,14 @@ class OutsideTouches:
         each fingertip slides linearly toward its position in the next sample and ramps its
         force toward the newest force.  As with a real hand, the skin senses a fingertip a
         little before it lands (queued samples tell where and when) and after it lifts
-        (it stays for a few hover time constants, then goes)."""
+        (its coupling fades with :data:`~wovenskin.sim.physics.LIFT_HOVER_TAU_S`: it stays
+        for a few of those, then goes).  A lift-off plays at once: the force is gone in the
+        next frame, since the sender reports a lift when the fingertip has left."""
         fs = self.fs
         ramp = _TOUCH_RAMP_S * fs
         hover = max(1e-9, self.hover_tau_s * fs)  # frames
-        tail = int(np.ceil(_HOVER_TAIL_TAUS * hover))
+        lift = max(1e-9, min(self.hover_tau_s, LIFT_HOVER_TAU_S) * fs)
+        tail = int(np.ceil(_HOVER_TAIL_TAUS * lift))
         paths: dict[int, np.ndarray] = {}  # finger -> (n, 4): x, y, force, presence
         for k in range(n):
             t = (first + k) / fs
@@ -360,7 +365,7 @@ class OutsideTouches:
                     finger.lifted_frames = 0
                 elif finger.target.force_n == 0.0:
                     finger.lifted_frames += 1
-                presence = np.exp(-finger.lifted_frames / hover)
+                presence = np.exp(-finger.lifted_frames / lift)
                 paths.setdefault(key, np.zeros((n, 4)))[k] = (x, y, finger.force, presence)
             for key, landing_t, tip in self._landings():
                 if key not in self.fingers:  # the hand approaches: sensed before contact
@@ -390,11 +395,11 @@ class OutsideTouches:
         """Make ``sample`` the fingertips' targets ."""
         for key, finger in self.fingers.items():
             if key not in sample.touches:
-                finger.aim(replace(finger.target, force_n=0.0), ramp)
+                finger.aim(replace(finger.target, force_n=0.0), 1.0)  # lifted: gone at once
                 finger.anchor_t = sample.t
         for key, tip in sample.touches.items():
             finger = self.fingers.get(key)
             if finger is None:
                 finger = self.fingers[key] = _Finger(tip.x_mm, tip.y_mm, 0.0, tip)
-            finger.aim(tip, ramp)
+            finger.aim(tip, ramp if tip.force_n > 0 else 1.0)
             finger.anchor_t = sample.t

@@ -17,8 +17,9 @@ Signal chain of the channel at ``[r, c]``, frame ``n``:
    channel rectangle (``col_pitch x row_pitch``); the default ``S = 8`` keeps the sampling
    ripple of a sliding fingertip's total signal under 2 % (4 x 4 points give ~6 %).
 3. *Fabric mechanics:* a fast first-order lag plus a slow viscoelastic creep component.
-4. *Proximity:* a small fringe-field response around each contact, present slightly before
-   landing and after lift-off (the hand hovering).
+4. *Proximity:* a small fringe-field response around each contact, present before landing
+   (the hand approaching: ``hover_tau_s``) and for a few milliseconds after lift-off
+   (:data:`LIFT_HOVER_TAU_S`).
 5. *Gain:* per-skin gain (pF at full coverage and saturation) times a per-channel gain.
 6. *Crosstalk* along the electrode lines: a fraction of each channel's change appears on
    every other channel of its row and of its column.
@@ -38,7 +39,6 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 from scipy.signal import lfilter
 
 from wovenskin.errors import ConfigError
@@ -53,6 +53,35 @@ faster than the fabric and the readout warm up or cool down, which takes seconds
 minutes; a raw Ornstein-Uhlenbeck process would instead wander like a random walk on
 every time scale, i.e. add noise at the frame rate.  It barely changes the rms change
 over a minute (``drift_*_per_min``) and makes the change over 0.1 s about 50x smaller."""
+
+
+LIFT_HOVER_TAU_S = 0.005
+"""Time constant (s) with which a lifted fingertip's fringe-field coupling fades.
+
+A hand is sensed longer before it lands (``SkinPhysics.hover_tau_s``, 10-60 ms) than after
+it lifts: a finger slows down as it approaches a surface, but a lifting finger accelerates
+away from it, at 50-200 mm/s within a few milliseconds.  The coupling of a fingertip to a
+woven electrode under its cover falls off within about a millimetre of height (it is a
+small share of a press's change even at the surface: ``proximity_fraction``), which a
+lifting fingertip leaves behind in about 5 ms; so its tail fades with this constant,
+whatever the skin's approach constant.  The same fingertip hovering for tens of
+milliseconds after a lift would keep a fraction of a contact's signal on the skin after
+every release, which a capacitive skin does not show."""
+
+
+def _presence(touching: np.ndarray, hover_frames: float, lift_frames: float) -> np.ndarray:
+    """Presence (0..1) per frame of a contact ``touching`` in some frames: 1 in contact,
+    ``exp(-d / hover_frames)`` ``d`` frames before its next contact (approaching) and
+    ``exp(-d / lift_frames)`` ``d`` frames after its last one (lifted), the larger where
+    both apply."""
+    n = touching.shape[0]
+    frames = np.arange(n, dtype=np.float64)
+    last = np.maximum.accumulate(np.where(touching, frames, -np.inf))
+    upcoming = np.minimum.accumulate(np.where(touching, frames, np.inf)[::-1])[::-1]
+    with np.errstate(over="ignore", invalid="ignore"):
+        after = np.exp(-(frames - last) / max(lift_frames, 1e-9))
+        before = np.exp(-(upcoming - frames) / max(hover_frames, 1e-9))
+    return np.maximum(np.nan_to_num(after), np.nan_to_num(before))
 
 
 def _spread_matrix(
@@ -293,6 +322,7 @@ class SkinModel:
         proximity = np.zeros((n, rows, cols))
         phys = self.physics
         hover_frames = phys.hover_tau_s * self.sample_rate_hz
+        lift_frames = min(phys.hover_tau_s, LIFT_HOVER_TAU_S) * self.sample_rate_hz
         for c in contacts:
             if c.presence is not None:
                 presence = c.presence[offset : offset + n]
@@ -300,12 +330,7 @@ class SkinModel:
                 touching = c.touching
                 if not touching.any():
                     continue
-                if touching.all():
-                    distance = np.zeros(touching.shape)
-                else:
-                    distance = np.asarray(distance_transform_edt(~touching), dtype=np.float64)
-                presence = np.exp(-distance / max(hover_frames, 1e-9))
-                presence = presence[offset : offset + n]
+                presence = _presence(touching, hover_frames, lift_frames)[offset : offset + n]
             idx = np.flatnonzero(presence > 1e-3)
             if idx.size == 0:
                 continue
