@@ -392,8 +392,8 @@ function updateRecognition(state) {
   let phase = "";
   if (motion.nudging) phase = "  (nudge)";
   else if (motion.fraction != null) phase = motion.fraction < 0.999 ? `  (${Math.round(motion.fraction * 100)} % of full: hold to speed up)` : "  (full speed)";
-  $("speed").textContent = moving ? `arm ${motion.linear_mm_s.toFixed(1)} mm/s  ${motion.angular_deg_s.toFixed(1)} deg/s${phase}` : "arm still";
-  $("speed").dataset.linear = String(motion.linear_mm_s || 0);
+  $("motion-speed").textContent = moving ? `arm ${motion.linear_mm_s.toFixed(1)} mm/s  ${motion.angular_deg_s.toFixed(1)} deg/s${phase}` : "arm still";
+  $("motion-speed").dataset.linear = String(motion.linear_mm_s || 0);
   const holding = (state.safety && state.safety.holding) || [];
   $("holding").textContent = holding.length ? `held back: ${holding.join("; ")}` : "";
   $("holding").dataset.holding = holding.join("\n");
