@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from wovenskin.recognition.arbiter import (
     DWELL,
     ERRATIC,
+    FLICK,
     LIFT_OFF,
     NOTHING,
     PREEMPT,
@@ -156,10 +157,13 @@ def test_step_matches_run_and_validates() -> None:
     whole = Arbiter(CLASSES, RATE).run(t, touched, performing, predicted, probabilities)
     stepper = Arbiter(CLASSES, RATE)
     stepped = [
-        stepper.step(t[i], touched[i], performing[i], probabilities[i] if predicted[i] else None)
+        change
         for i in range(n)
+        for change in stepper.step(
+            t[i], touched[i], performing[i], probabilities[i] if predicted[i] else None
+        )
     ]
-    assert [c for c in stepped if c is not None] == whole
+    assert stepped == whole
     assert len(whole) > 3
     with pytest.raises(ValueError, match="expected 4 class probabilities, got 3"):
         stepper.step(0.0, True, True, np.ones(3))
@@ -408,3 +412,104 @@ def test_resting_phases_of_simulated_gestures_never_look_performed() -> None:
             assert flags[motion].mean() > 0.5, event["label"]
             checked_motion += 1
     assert checked_rest >= 3 and checked_motion >= 5
+
+
+# -- flicks -----------------------------------------------------------------------------------
+FLICKS = ArbiterSettings(flick_s=0.05, flick_probability=0.9, flick_gap_s=0.05, flick_after_s=0.3)
+FLICK_FRAMES = 10  # 0.05 s at 200 Hz
+
+
+def flick_sequence(labels, gap_after=0, lead=None, settings=FLICKS, probability=0.95, **kw):
+    """``lead`` untouched frames, a touch with ``labels``, ``gap_after`` untouched frames."""
+    lead = lead or []
+    labels = lead + labels + [None] * (gap_after + 1)
+    touched = [False] * len(lead) + [True] * (len(labels) - len(lead) - gap_after - 1)
+    touched += [False] * (gap_after + 1)
+    return run_sequence(labels, touched, arbiter_settings=settings, probability=probability, **kw)
+
+
+def test_a_touch_recognised_briefly_then_lifted_is_a_flick() -> None:
+    labels = [None] * 5 + ["swipe_right"] * (FLICK_FRAMES + 1) + [None] * 3
+    arbiter, changes = flick_sequence(labels)
+    lift = len(labels) / RATE
+    assert [(c.t, c.gesture, c.reason) for c in changes] == [
+        (lift, "swipe_right", FLICK),
+        (lift, None, LIFT_OFF),
+    ]
+    assert arbiter.active is None
+    # one frame short of the streak, or too long a gap before the lift: nothing
+    assert flick_sequence([None] * 5 + ["swipe_right"] * FLICK_FRAMES)[1] == []
+    assert flick_sequence(["swipe_right"] * (FLICK_FRAMES + 1) + ["invalid"] * 10)[1] == []
+    # trailing predictions of nothing within the gap keep it; another gesture breaks it
+    kept = flick_sequence(["swipe_right"] * (FLICK_FRAMES + 1) + ["invalid"] * 9)[1]
+    assert [c.reason for c in kept] == [FLICK, LIFT_OFF]
+    broken = ["swipe_right"] * 8 + ["swipe_up"] + ["swipe_right"] * 8
+    assert flick_sequence(broken)[1] == []
+
+
+def test_a_flick_needs_its_own_probability_and_no_command_in_the_touch() -> None:
+    labels = ["push"] * (FLICK_FRAMES + 5)
+    assert flick_sequence(labels, probability=0.88)[1] == []  # under flick_probability
+    assert [c.reason for c in flick_sequence(labels, probability=0.92)[1]] == [FLICK, LIFT_OFF]
+    # a command that started in the touch ends at the lift as before
+    changes = flick_sequence(["push"] * (DWELL_FRAMES + 5))[1]
+    assert [c.reason for c in changes] == [DWELL, LIFT_OFF]
+    # switched off
+    off = ArbiterSettings(flick_s=None)
+    assert flick_sequence(labels, settings=off)[1] == []
+
+
+def test_resting_fingers_and_a_touch_right_after_a_command_never_flick() -> None:
+    labels = ["push"] * (FLICK_FRAMES + 5)
+    # not performed within start_within_s (0.2 s) of the streak: no flick
+    assert flick_sequence(labels, performing=[False] * (len(labels) + 1))[1] == []
+    # a command ended 0.1 s before the touch began: the touch is its continuation
+    lead = ["push"] * (DWELL_FRAMES + 2)
+    labels_all = lead + [None] * 20 + labels
+    touched = [True] * len(lead) + [False] * 20 + [True] * len(labels) + [False]
+    changes = run_sequence(labels_all + [None], touched, arbiter_settings=FLICKS, probability=0.95)[
+        1
+    ]
+    assert [c.reason for c in changes] == [DWELL, LIFT_OFF]
+    # 0.3 s later it is a new touch
+    gap = 60
+    labels_all = lead + [None] * gap + labels
+    touched = [True] * len(lead) + [False] * gap + [True] * len(labels) + [False]
+    changes = run_sequence(labels_all + [None], touched, arbiter_settings=FLICKS, probability=0.95)[
+        1
+    ]
+    assert [c.reason for c in changes] == [DWELL, LIFT_OFF, FLICK, LIFT_OFF]
+
+
+def test_flick_settings_are_validated() -> None:
+    with pytest.raises(ValueError, match="flick_s must be None or a number >= 0"):
+        ArbiterSettings(flick_s=-1.0)
+    with pytest.raises(ValueError, match="flick_probability must be None or lie in"):
+        ArbiterSettings(flick_probability=1.5)
+    with pytest.raises(ValueError, match="flick_after_s must be a number >= 0"):
+        ArbiterSettings(flick_after_s=float("nan"))
+
+
+def test_keep_probability_keeps_a_confident_candidate_through_weaker_predictions() -> None:
+    # recognised confidently once, then only at 0.7: under min_probability 0.85 the dwell
+    # never completes, with keep_probability 0.6 the candidate stays and acts
+    n = DWELL_FRAMES + 1
+    predicted = np.ones(n, dtype=bool)
+    probabilities = np.stack([one_hot("swipe_up", 0.9)] + [one_hot("swipe_up", 0.7)] * (n - 1))
+    t = np.arange(n) / RATE
+    on = np.ones(n, dtype=bool)
+    strict = ArbiterSettings(min_probability=0.85)
+    assert Arbiter(CLASSES, RATE, strict).run(t, on, on, predicted, probabilities) == []
+    kept = ArbiterSettings(min_probability=0.85, keep_probability=0.6)
+    changes = Arbiter(CLASSES, RATE, kept).run(t, on, on, predicted, probabilities)
+    assert [(round(c.t * RATE), c.gesture, c.reason) for c in changes] == [
+        (DWELL_FRAMES, "swipe_up", DWELL)
+    ]
+    # a weak start never becomes the candidate, and another gesture still replaces it
+    weak = np.stack([one_hot("swipe_up", 0.7)] * n)
+    assert Arbiter(CLASSES, RATE, kept).run(t, on, on, predicted, weak) == []
+    other = probabilities.copy()
+    other[10] = one_hot("swipe_right", 0.9)
+    assert Arbiter(CLASSES, RATE, kept).run(t, on, on, predicted, other) == []
+    with pytest.raises(ValueError, match="keep_probability must be None or lie in"):
+        ArbiterSettings(keep_probability=-0.1)

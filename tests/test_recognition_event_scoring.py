@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from wovenskin.recognition.arbiter import DWELL, FLICK, LIFT_OFF, CommandChange
 from wovenskin.recognition.commandlog import Command
 from wovenskin.recognition.event_scoring import (
     aggregate,
@@ -79,6 +80,18 @@ def test_repeated_lines_are_not_new_activations_and_matching_is_one_to_one() -> 
     # One activation spanning two events detects only the first.
     s = score_commands(log((1.45, "push")), [1.0, 1.5], [1.5, 2.0], ["push", "push"], 10.0)
     assert (s.n_detected, s.n_missed) == (1, 1)
+
+
+def test_a_flick_detects_its_event_and_a_flick_on_an_invalid_touch_is_false() -> None:
+    flick = [CommandChange(1.52, "swipe_up", FLICK), CommandChange(1.52, None, LIFT_OFF)]
+    s = score_commands(flick, [1.0], [1.5], ["swipe_up"], 10.0)
+    assert (s.n_activations, s.n_detected, s.n_false, s.n_duplicates) == (1, 1, 0, 0)
+    s = score_commands(flick, [1.0], [1.5], ["invalid"], 10.0)
+    assert (s.n_detected, s.n_false, s.n_invalid_acted) == (0, 1, 1)
+    # after a dwell command of the same touch, a second one is a duplicate
+    both = [CommandChange(1.2, "swipe_up", DWELL), CommandChange(1.3, None, LIFT_OFF), *flick]
+    s = score_commands(both, [1.0], [1.5], ["swipe_up"], 10.0)
+    assert (s.n_detected, s.n_duplicates) == (1, 1)
 
 
 def test_nothing_to_count() -> None:

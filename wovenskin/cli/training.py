@@ -150,6 +150,11 @@ def train(
         1, help="Torch threads (one is fastest on a busy 2-core machine: measure)."
     ),
     overwrite: bool = typer.Option(False, help="Replace a trained model already in --out."),
+    init_from: Path = typer.Option(
+        None,
+        help="Fine-tune: start from this checkpoint's weights (e.g. wovenskin/models/default); "
+        "same model, hyperparameters and classes.",
+    ),
 ) -> None:
     """Train a gesture classifier (PyTorch) with early stopping, checkpoints and resume."""
     from wovenskin.training import runs
@@ -163,10 +168,13 @@ def train(
         "batch_size": batch_size, "lr": lr, "seed": seed, "patience": patience,
         "split_seed": split_seed, "resume": resume, "threads": threads,
         "time_budget_s": None if time_budget is None else 60 * time_budget,
+        "init_from": None if init_from is None else str(init_from),
     }  # fmt: skip
     if captures is not None:
         if data is not None:
             raise ConfigError("give --data or --captures, not both")
+        if init_from is not None:
+            raise ConfigError("--init-from fine-tunes on a window data set (--data), not captures")
         out = out or runs.default_captures_dir(captures)
         runs.check_checkpoint_dir(out, overwrite, resume)
         # Captures keep their own recipe: only --model, --epochs, --seed, --threads and

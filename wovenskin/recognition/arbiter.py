@@ -16,6 +16,12 @@ Rules (docs/gestures.md, "Execution rules" and the resting paragraph before them
   recognises nothing.  ``invalid`` and no contact never start an action.
 - The *candidate* is the class recognised by every prediction since the frame
   ``candidate_since`` where it first was (any other prediction replaces or clears it).
+  With ``keep_probability`` (``None``: ``min_probability``; never above it) a prediction
+  that recognises nothing still *keeps* the candidate when the candidate is its most
+  probable class with at least ``keep_probability``: a gesture must be recognised
+  confidently to become the candidate, less confidently to stay one (hysteresis, the
+  touch's history beside the 150 ms window).  A prediction of another valid gesture at
+  ``min_probability`` still replaces it.
   Its dwell is satisfied at a prediction frame ``i`` when ``i - candidate_since >=
   dwell_frames`` (``dwell_frames = round(dwell_s * rate)``, 20 at 200 Hz): the gesture
   has been recognised at the start and at the end of a whole dwell time, and at every
@@ -43,27 +49,30 @@ Rules (docs/gestures.md, "Execution rules" and the resting paragraph before them
   ``"erratic"``) and nothing acts until every finger has lifted.  People do correct a
   wrongly recognised first command by going on with the gesture (one switch), but do not
   chain three different commands in one touch.  ``None`` allows any number.
+- Flicks (``flick_s``; ``None`` turns them off): a touch that lifts before any command
+  started in it emits, on the lift's frame, ``CommandChange(t, g, "flick")`` immediately
+  followed by ``CommandChange(t, None, "lift-off")`` -- a command that ends at once,
+  which the control session turns into its smallest step -- when all of these hold:
 
-"Being performed" (:class:`PerformingDetector`): over the *touch region* -- the active
-channels and their 8 neighbours -- each frame gets the total signal ``S`` (of the
-signal above 15 % of the frame's peak: a soft floor, so channels flickering at their
-contact threshold do not jump the measures), its centroid (mm) and its spread (rms
-distance of the signal from the centroid, mm).  Frame ``i`` is compared with frame
-``i - L`` (``L = round(span_s * rate)``, 0.1 s): the fingers are being performed when
-the touch region is not empty in either and
+  - the touch's latest *streak*, unbroken consecutive predictions whose most probable
+    class is the valid gesture ``g`` with at least ``flick_probability`` (``None``:
+    ``min_probability``; never below it), spans at least ``flick_s`` from its first to
+    its last prediction (0.075 s: 16 predictions at every frame; the dwell needs 21);
+  - its last prediction lies at most ``flick_gap_s`` (0.05 s) before the lift (the
+    windows that see the finger leave may recognise nothing; a prediction of another
+    gesture ends the streak);
+  - the fingers were being performed within ``start_within_s`` of that prediction (as
+    for a dwell: resting fingers start nothing);
+  - the touch began at least ``flick_after_s`` (0.3 s) after the previous command ended:
+    on a dull skin the contact flag can drop for a few frames in the middle of a gesture
+    whose command just ended, and that fragment is no new gesture.
 
-- the centroid moved faster than ``min_speed_mm_s`` (a swipe, a circle), or
-- the spread changed faster than ``min_spread_rate_mm_s`` (a pinch: the centroid of two
-  converging fingers hardly moves), or
-- ``|S_i - S_{i-L}| / max(S_i, S_{i-L})`` reaches ``min_pressure_change`` (a push, a
-  landing or a lift: a contact appearing or vanishing is a change of 1).
+  A swipe lifted as soon as its motion ends (a flick) may give the model fewer
+  confident windows than the dwell needs; its streak is what the touch showed.  The
+  figures behind these defaults are in ``docs/gestures.md`` ("Execution rules").
 
-The defaults (30 mm/s, 20 mm/s, 0.2) come from simulated streams of 20 people and skins:
-resting phases (from 0.25 s after the motion ended, past the 0.1 s moving average) never
-showed more than 3 consecutive performing frames (the preemption dwell needs 21), while
-swipes, circles and pinches are performing for most of their motion; a slow push press
-is performing for at least 7 consecutive frames after its landing.  The signal is the
-conditioner's 0.1 s moving average, so the flag lags the fingers by up to about 0.1 s.
+"Being performed" is :mod:`~wovenskin.recognition.performing`'s flag (its module doc has
+the rule and its defaults); its names are re-exported here.
 
 Everything is causal and carries its state between calls, so any split of the frames
 into calls gives the same commands.
@@ -75,21 +84,37 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import INVALID
-from wovenskin.skin.layout import DEFAULT_COL_PITCH_MM, DEFAULT_ROW_PITCH_MM
+from wovenskin.recognition.performing import RELATIVE_FLOOR as RELATIVE_FLOOR
+from wovenskin.recognition.performing import PerformingDetector as PerformingDetector
+from wovenskin.recognition.performing import PerformingSettings as PerformingSettings
+from wovenskin.recognition.performing import check_positive
+from wovenskin.recognition.performing import touch_features as touch_features
 
 DWELL = "dwell"
 PREEMPT = "preempt"
 LIFT_OFF = "lift-off"
 ERRATIC = "erratic"
-REASONS: tuple[str, ...] = (DWELL, PREEMPT, LIFT_OFF)
+FLICK = "flick"
+REASONS: tuple[str, ...] = (DWELL, PREEMPT, LIFT_OFF, FLICK)
 """Why the active command changed, as :attr:`CommandChange.reason`."""
 
 NOTHING = -1
 """Class index meaning "this prediction recognises no valid gesture"."""
+
+FLICK_S = 0.075
+"""Default shortest streak of the flick rule (see the module doc), in seconds."""
+
+FLICK_GAP_S = 0.05
+"""Default longest time from a flick's streak to the lift (see the module doc), in seconds."""
+
+FLICK_PROBABILITY = 0.9
+"""Default probability every prediction of a flick's streak reaches (see the module doc)."""
+
+FLICK_AFTER_S = 0.3
+"""Default shortest time from a command's end to the touch of a flick (see the module doc)."""
 
 
 @dataclass(frozen=True)
@@ -104,22 +129,35 @@ class CommandChange:
         return {"t": self.t, "gesture": self.gesture, "reason": self.reason}
 
 
-def _check_positive(name: str, value: float) -> None:
-    if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-        raise ConfigError(f"{name} must be a positive finite number, got {value!r}")
-
-
 @dataclass(frozen=True)
 class ArbiterSettings:
     """Execution-rule settings (see the module doc)."""
 
     dwell_s: float = 0.1
     min_probability: float = 0.0
+    keep_probability: float | None = None
     max_switches: int | None = 1
     start_within_s: float | None = 0.2
+    flick_s: float | None = FLICK_S
+    flick_gap_s: float = FLICK_GAP_S
+    flick_probability: float | None = FLICK_PROBABILITY
+    flick_after_s: float = FLICK_AFTER_S
 
     def __post_init__(self) -> None:
-        _check_positive("dwell_s", self.dwell_s)
+        check_positive("dwell_s", self.dwell_s)
+        f = self.flick_s
+        if f is not None and not (isinstance(f, int | float) and math.isfinite(f) and f >= 0):
+            raise ConfigError(f"flick_s must be None or a number >= 0, got {f!r}")
+        k = self.keep_probability
+        if k is not None and not (isinstance(k, int | float) and 0.0 <= k <= 1.0):
+            raise ConfigError(f"keep_probability must be None or lie in [0, 1], got {k!r}")
+        q = self.flick_probability
+        if q is not None and not (isinstance(q, int | float) and 0.0 <= q <= 1.0):
+            raise ConfigError(f"flick_probability must be None or lie in [0, 1], got {q!r}")
+        for name in ("flick_gap_s", "flick_after_s"):
+            g = getattr(self, name)
+            if not (isinstance(g, int | float) and math.isfinite(g) and g >= 0):
+                raise ConfigError(f"{name} must be a number >= 0, got {g!r}")
         w = self.start_within_s
         if w is not None and not (isinstance(w, int | float) and math.isfinite(w) and w >= 0):
             raise ConfigError(f"start_within_s must be None or a number >= 0, got {w!r}")
@@ -134,108 +172,9 @@ class ArbiterSettings:
         """The dwell time in frames (at least 1)."""
         return max(1, int(round(self.dwell_s * sample_rate_hz)))
 
-
-@dataclass(frozen=True)
-class PerformingSettings:
-    """When fingers count as being performed rather than resting (see the module doc)."""
-
-    span_s: float = 0.1
-    min_speed_mm_s: float = 30.0
-    min_spread_rate_mm_s: float = 20.0
-    min_pressure_change: float = 0.2
-    row_pitch_mm: float = DEFAULT_ROW_PITCH_MM
-    col_pitch_mm: float = DEFAULT_COL_PITCH_MM
-
-    def __post_init__(self) -> None:
-        for name in (
-            "span_s",
-            "min_speed_mm_s",
-            "min_spread_rate_mm_s",
-            "row_pitch_mm",
-            "col_pitch_mm",
-        ):
-            _check_positive(name, getattr(self, name))
-        change = self.min_pressure_change
-        if not (isinstance(change, int | float) and 0.0 < change <= 1.0):
-            raise ConfigError(f"min_pressure_change must lie in (0, 1], got {change!r}")
-
-    def span_frames(self, sample_rate_hz: float) -> int:
-        """Frames between the two compared frames (at least 1)."""
-        return max(1, int(round(self.span_s * sample_rate_hz)))
-
-
-_REGION_STRUCTURE = np.zeros((3, 3, 3), dtype=bool)
-_REGION_STRUCTURE[1] = True  # 8 neighbours within a frame, never across frames
-
-
-RELATIVE_FLOOR = 0.15
-"""Share of a frame's peak below which a channel does not count toward the touch's
-centroid, spread and total (see :func:`touch_features`)."""
-
-
-def touch_features(
-    signal: np.ndarray,
-    active: np.ndarray,
-    row_pitch_mm: float = DEFAULT_ROW_PITCH_MM,
-    col_pitch_mm: float = DEFAULT_COL_PITCH_MM,
-) -> np.ndarray:
-    """``(N, 4)`` float64 per frame: total signal, centroid row and col (mm), spread (mm).
-
-    Each channel weighs by how far its signal rises above :data:`RELATIVE_FLOOR` times
-    the frame's peak, within the touch region (active channels and their 8 neighbours).
-    The soft floor makes the measures continuous in the signal: on a dull, noisy skin
-    the fingertips of a resting hand flicker across the contact threshold, and counting
-    a channel fully or not at all made their centroid jump by tens of mm/s.  A frame
-    without active channels has total 0 and centroid/spread 0.  Each frame's values
-    depend on that frame alone.
-    """
-    n, rows, cols = signal.shape
-    region = ndimage.binary_dilation(active, structure=_REGION_STRUCTURE)
-    inside = np.where(region, np.maximum(signal, 0.0), 0.0).astype(np.float64)
-    peak = inside.reshape(n, -1).max(axis=1)[:, None, None]
-    weights = np.maximum(inside - RELATIVE_FLOOR * peak, 0.0)
-    weights = weights.reshape(n, rows * cols)
-    row_mm = np.repeat(np.arange(rows, dtype=np.float64) * row_pitch_mm, cols)
-    col_mm = np.tile(np.arange(cols, dtype=np.float64) * col_pitch_mm, rows)
-    total = weights.sum(axis=1)
-    safe = np.where(total > 0, total, 1.0)
-    r = (weights * row_mm).sum(axis=1) / safe
-    c = (weights * col_mm).sum(axis=1) / safe
-    second = (weights * (row_mm * row_mm + col_mm * col_mm)).sum(axis=1) / safe
-    spread = np.sqrt(np.maximum(second - r * r - c * c, 0.0))
-    return np.stack([total, r, c, spread], axis=1)
-
-
-class PerformingDetector:
-    """Frame-by-frame "fingers are being performed" flag (see the module doc)."""
-
-    def __init__(self, sample_rate_hz: float, settings: PerformingSettings | None = None) -> None:
-        _check_positive("sample_rate_hz", sample_rate_hz)
-        self.settings = settings or PerformingSettings()
-        self.sample_rate_hz = float(sample_rate_hz)
-        self.span = self.settings.span_frames(sample_rate_hz)
-        self._history = np.zeros((self.span, 4), dtype=np.float64)  # frames before the next
-
-    def reset(self) -> None:
-        """Forget the past frames (as if the skin had been untouched)."""
-        self._history[:] = 0.0
-
-    def update(self, signal: np.ndarray, active: np.ndarray) -> np.ndarray:
-        """``(N,)`` bool flags for conditioned ``signal`` and ``active`` ``(N, R, C)``."""
-        s = self.settings
-        features = touch_features(signal, active, s.row_pitch_mm, s.col_pitch_mm)
-        joined = np.concatenate([self._history, features])
-        now, before = joined[self.span :], joined[: -self.span]
-        self._history = joined[-self.span :].copy()
-        elapsed = self.span / self.sample_rate_hz
-        both = (now[:, 0] > 0) & (before[:, 0] > 0)
-        either = (now[:, 0] > 0) | (before[:, 0] > 0)
-        speed = np.hypot(now[:, 1] - before[:, 1], now[:, 2] - before[:, 2]) / elapsed
-        spread_rate = np.abs(now[:, 3] - before[:, 3]) / elapsed
-        larger = np.maximum(np.maximum(now[:, 0], before[:, 0]), np.finfo(np.float64).tiny)
-        pressure_change = np.abs(now[:, 0] - before[:, 0]) / larger
-        moving = both & ((speed >= s.min_speed_mm_s) | (spread_rate >= s.min_spread_rate_mm_s))
-        return moving | (either & (pressure_change >= s.min_pressure_change))
+    def flick_frames(self, sample_rate_hz: float) -> int | None:
+        """The flick rule's shortest streak in frames (None: no flicks)."""
+        return None if self.flick_s is None else int(round(self.flick_s * sample_rate_hz))
 
 
 def recognised_classes(
@@ -259,7 +198,7 @@ class Arbiter:
         sample_rate_hz: float,
         settings: ArbiterSettings | None = None,
     ) -> None:
-        _check_positive("sample_rate_hz", sample_rate_hz)
+        check_positive("sample_rate_hz", sample_rate_hz)
         self.class_names = tuple(str(c) for c in class_names)
         if not self.class_names:
             raise ConfigError("the arbiter needs at least one class name")
@@ -274,6 +213,28 @@ class Arbiter:
         self._switches = 0
         self._suppressed = False
         self._last_performing: int | None = None
+        self._flick_frames = self.settings.flick_frames(sample_rate_hz)
+        keep = self.settings.keep_probability
+        self._keep_probability = (
+            self.settings.min_probability
+            if keep is None
+            else min(keep, self.settings.min_probability)
+        )
+        self._flick_probability = (
+            self.settings.min_probability
+            if self.settings.flick_probability is None
+            else max(self.settings.flick_probability, self.settings.min_probability)
+        )
+        self._flick_gap = int(round(self.settings.flick_gap_s * sample_rate_hz))
+        self._touching = False
+        self._touch_start = 0  # first frame of the current touch
+        self._ended_at: int | None = None  # frame of the latest command's end
+        self._after_frames = int(round(self.settings.flick_after_s * sample_rate_hz))
+        self._streak = NOTHING  # the flick rule's streak: its class, first and last frame
+        self._streak_since = 0
+        self._streak_last = 0
+        self._streak_open = False  # the latest prediction recognised the streak's class
+        self._streak_fresh = False  # fingers performed near the streak's last prediction
         self._start_frames = (
             None
             if self.settings.start_within_s is None
@@ -305,19 +266,21 @@ class Arbiter:
         touched: bool,
         performing: bool,
         probabilities: np.ndarray | None = None,
-    ) -> CommandChange | None:
-        """One frame; ``probabilities`` ``(K,)`` when the model ran on it. Returns a change."""
-        recognised = None
-        if probabilities is not None:
-            row = np.asarray(probabilities, dtype=np.float64).reshape(1, -1)
-            if row.shape[1] != len(self.class_names):
-                raise ValueError(
-                    f"expected {len(self.class_names)} class probabilities, got {row.shape[1]}"
-                )
-            recognised = int(
-                recognised_classes(row, self.class_names, self.settings.min_probability)[0]
+    ) -> list[CommandChange]:
+        """One frame; ``probabilities`` ``(K,)`` when the model ran on it. Returns its changes
+        (none, one, or a flick and its lift-off)."""
+        if probabilities is None:
+            return self._step(float(t), bool(touched), bool(performing), None)
+        row = np.asarray(probabilities, dtype=np.float64).reshape(1, -1)
+        if row.shape[1] != len(self.class_names):
+            raise ValueError(
+                f"expected {len(self.class_names)} class probabilities, got {row.shape[1]}"
             )
-        return self._step(float(t), bool(touched), bool(performing), recognised)
+        names = self.class_names
+        recognised = int(recognised_classes(row, names, self.settings.min_probability)[0])
+        strong = int(recognised_classes(row, names, self._flick_probability)[0])
+        kept = int(recognised_classes(row, names, self._keep_probability)[0])
+        return self._step(float(t), bool(touched), bool(performing), recognised, strong, kept)
 
     def run(
         self,
@@ -346,40 +309,64 @@ class Arbiter:
                 f"got {probabilities.shape}"
             )
         recognised = np.full(n, NOTHING, dtype=np.int64)
+        strong = np.full(n, NOTHING, dtype=np.int64)
+        kept = np.full(n, NOTHING, dtype=np.int64)
         if predicted.any():
-            recognised[predicted] = recognised_classes(
-                probabilities[predicted], self.class_names, self.settings.min_probability
-            )
+            rows = probabilities[predicted]
+            names = self.class_names
+            recognised[predicted] = recognised_classes(rows, names, self.settings.min_probability)
+            strong[predicted] = recognised_classes(rows, names, self._flick_probability)
+            kept[predicted] = recognised_classes(rows, names, self._keep_probability)
         changes = []
-        times = t.tolist()
-        for ti, on, perf, pred, rec in zip(
-            times,
+        for ti, on, perf, pred, rec, sure, keep in zip(
+            t.tolist(),
             touched.tolist(),
             performing.tolist(),
             predicted.tolist(),
             recognised.tolist(),
+            strong.tolist(),
+            kept.tolist(),
             strict=True,
         ):
-            change = self._step(ti, on, perf, rec if pred else None)
-            if change is not None:
-                changes.append(change)
+            if pred:
+                changes.extend(self._step(ti, on, perf, rec, sure, keep))
+            else:
+                changes.extend(self._step(ti, on, perf, None))
         return changes
 
     def _step(
-        self, t: float, touched: bool, performing: bool, recognised: int | None
-    ) -> CommandChange | None:
+        self,
+        t: float,
+        touched: bool,
+        performing: bool,
+        recognised: int | None,
+        strong: int = NOTHING,
+        kept: int = NOTHING,
+    ) -> list[CommandChange]:
         self._frame += 1
         i = self._frame
         if not touched:
+            flick = self._flick(i) if self._touching else NOTHING
+            self._touching = False
             self._candidate = NOTHING
             self._performing_since = None
             self._switches = 0
             self._suppressed = False
             self._last_performing = None
+            self._streak = NOTHING
+            self._streak_open = False
+            if flick != NOTHING:
+                self._ended_at = i
+                gesture = self.class_names[flick]
+                return [CommandChange(t, gesture, FLICK), CommandChange(t, None, LIFT_OFF)]
             if self._active != NOTHING:
                 self._active = NOTHING
-                return CommandChange(t, None, LIFT_OFF)
-            return None
+                self._ended_at = i
+                return [CommandChange(t, None, LIFT_OFF)]
+            return []
+        if not self._touching:
+            self._touch_start = i
+        self._touching = True
         if not performing:
             self._performing_since = None
         else:
@@ -387,16 +374,53 @@ class Arbiter:
             if self._performing_since is None:
                 self._performing_since = i
         if recognised is None or self._suppressed:
-            return None
-        if recognised != self._candidate:
+            return []
+        self._track_streak(i, strong)
+        change = self._decide(t, i, recognised, kept)
+        return [] if change is None else [change]
+
+    def _fresh(self, i: int) -> bool:
+        """Fingers were being performed within ``start_within_s`` of frame ``i``."""
+        if self._start_frames is None:
+            return True
+        return self._last_performing is not None and i - self._last_performing <= self._start_frames
+
+    def _track_streak(self, i: int, recognised: int) -> None:
+        """The flick rule's streak: unbroken predictions of one gesture (see the module doc)."""
+        if recognised == NOTHING:
+            self._streak_open = False
+            return
+        if not (self._streak_open and recognised == self._streak):
+            self._streak = recognised
+            self._streak_since = i
+        self._streak_open = True
+        self._streak_last = i
+        self._streak_fresh = self._fresh(i)
+
+    def _flick(self, i: int) -> int:
+        """The gesture a lift at frame ``i`` flicks (:data:`NOTHING`: none)."""
+        if self._flick_frames is None or self._active != NOTHING or self._suppressed:
+            return NOTHING
+        if self._streak == NOTHING or not self._streak_fresh:
+            return NOTHING
+        if self._ended_at is not None and self._touch_start - self._ended_at < self._after_frames:
+            return NOTHING
+        if self._streak_last - self._streak_since < self._flick_frames:
+            return NOTHING
+        if i - self._streak_last > self._flick_gap:
+            return NOTHING
+        return self._streak
+
+    def _decide(self, t: float, i: int, recognised: int, kept: int) -> CommandChange | None:
+        if recognised != self._candidate and not (
+            recognised == NOTHING and kept == self._candidate
+        ):
             self._candidate = recognised
             self._candidate_since = i
         if self._candidate == NOTHING or self._candidate == self._active:
             return None
         if self._active == NOTHING:
-            if self._start_frames is not None and (
-                self._last_performing is None or i - self._last_performing > self._start_frames
-            ):
+            if not self._fresh(i):
                 return None
             if i - self._candidate_since >= self.dwell_frames:
                 self._active = self._candidate

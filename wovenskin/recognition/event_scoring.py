@@ -3,7 +3,10 @@
 Definitions (``tolerance_s`` = 0.1 s by default):
 
 - *Activation*: a command-log entry whose gesture is not null and differs from the
-  command before it (repeated lines are not new activations).
+  command before it (repeated lines are not new activations).  A flick (the arbiter's
+  reason ``"flick"``: a command and its end on the same frame, at the lift) is an
+  activation like any other, so it detects its gesture's event -- or is a false
+  activation.
 - An event's *window* is ``[start, end + tolerance_s]``: from its first contact to
   ``tolerance_s`` after its last lift-off, both ends included.
 - *Matching*: valid (non-``invalid``) events are taken in order of their start; each is

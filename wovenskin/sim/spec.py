@@ -23,6 +23,11 @@ SWIPE_PEAK_SPEED_MM_S = 480.0
 SWIPE_MAX_OFF_AXIS_DEG = 10.0
 """Largest angle between a swipe's chord and its nominal direction."""
 
+SWIPE_FLICK_LIFT_S = (0.01, 0.04)
+"""A flicked swipe starts lifting this long before its motion ends, with no rest (issue 22:
+a flick lifts as soon as, or just before, the motion ends; the lift ramp then covers the end
+of the deceleration)."""
+
 SWIPE_MAX_BOW = 0.06
 """Largest sideways bow of a swipe path, as a fraction of its travel ("slightly curved")."""
 
@@ -49,6 +54,14 @@ PINCH_5F_BUNCHED_MM = (6.0, 12.0)
 
 PUSH_RAMP_S = (0.15, 0.4)
 """Time over which a push's force rises."""
+
+PUSH_SMOOTH_SHARE = 0.35
+"""Share of pushes made as one smooth press: no distinct landing, the force rises
+continuously from zero over ``PUSH_RAMP_S`` (issue 22: people who press in one motion; 3 of
+12 such pushes were taken by a model trained only on pushes that land, then ramp)."""
+
+PUSH_SMOOTH_START = 0.03
+"""A smooth press starts at this share of its held force (a fingertip's first touch)."""
 
 PUSH_MAX_MOTION_MM = 3.0
 """A push holds with less motion than this."""

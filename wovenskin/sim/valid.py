@@ -89,7 +89,7 @@ def _swipe(trial: Trial, layout: SkinLayout, fs: float, name: str) -> Performanc
         if i > 0:  # the second finger follows the first imperfectly
             path = path + _finger_jitter(trial, path.shape[0], fs, 0.4)
         motions.append(FingerMotion(finger, path))
-    flick = trial.uniform(0.01, 0.04) if trial.flick() else 0.0
+    flick = trial.uniform(*spec.SWIPE_FLICK_LIFT_S) if trial.flick() else 0.0
     return assemble_hand(
         trial,
         motions,
@@ -118,9 +118,19 @@ def _finger_jitter(trial: Trial, n: int, fs: float, sd_mm: float) -> np.ndarray:
 # -- push --------------------------------------------------------------------------------------
 def _push(trial: Trial, layout: SkinLayout, fs: float, name: str) -> Performance:
     m = max(2, int(round(trial.paced_duration(spec.PUSH_RAMP_S) * fs)))
-    landing_force = trial.finger_force("index") * trial.uniform(0.6, 1.0)
+    # One draw decides both the landing style and, for a push that lands, its force: a
+    # share of people press in one smooth motion (no distinct landing, the force rising
+    # from nearly zero at first contact over the whole ramp).
+    style = trial.uniform(0.0, 1.0)
+    smooth = style < spec.PUSH_SMOOTH_SHARE
+    landing_share = 0.6 + 0.4 * max(style - spec.PUSH_SMOOTH_SHARE, 0.0) / (
+        1.0 - spec.PUSH_SMOOTH_SHARE
+    )
+    landing_force = trial.finger_force("index") * landing_share
     held_force = max(landing_force * trial.person.press_ratio, trial.uniform(1.2, 1.8))
     held_force = min(held_force, 8.0)
+    if smooth:
+        landing_force = held_force * spec.PUSH_SMOOTH_START
     # The press rises smoothly over the whole ramp, some people front-loading it.
     progress = minimum_jerk(m, skew=trial.uniform(-0.3, 0.3))
     gain = 1.0 + (held_force / landing_force - 1.0) * progress
@@ -133,6 +143,7 @@ def _push(trial: Trial, layout: SkinLayout, fs: float, name: str) -> Performance
         [FingerMotion("index", path, force_gain=gain, force_n=landing_force)],
         fs,
         label=name,
+        settle_s=0.0 if smooth else None,
         rest_s=hold,
         sway_scale=0.35,  # a pressing finger is held by friction
         wobble_scale=0.5,
@@ -141,6 +152,7 @@ def _push(trial: Trial, layout: SkinLayout, fs: float, name: str) -> Performance
             "landing_force_n": landing_force,
             "held_force_n": held_force,
             "hold_s": hold,
+            "smooth_press": smooth,
         },
     )
 

@@ -108,6 +108,10 @@ class TrainConfig:
     resume: bool = False
     time_budget_s: NonNegative | None = None
     """No epoch starts that would likely overrun it (at least one always runs)."""
+    init_from: str | None = None
+    """A checkpoint directory whose weights (``model.pt``) start the run instead of a random
+    initialisation (fine-tuning); its model, hyperparameters, classes and window shape
+    must be this run's."""
 
     # -- the validation split of a window data set
     split_seed: int = 0

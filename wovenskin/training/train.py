@@ -48,7 +48,7 @@ from torch import nn
 from wovenskin.errors import ConfigError, DataError
 from wovenskin.io import atomic_write_bytes, to_jsonable
 from wovenskin.recognition.checkpoint_meta import CheckpointMeta
-from wovenskin.training.checkpoint import save_checkpoint
+from wovenskin.training.checkpoint import load_checkpoint, save_checkpoint
 from wovenskin.training.config import TrainConfig
 from wovenskin.training.history import EpochRecord, TrainEvent, write_history
 from wovenskin.training.metrics import ClassificationMetrics, classification_metrics
@@ -267,11 +267,13 @@ def train_model(
         "train_idx": _digest(train_idx),
         "val_idx": _digest(val_idx),
         **settings.optimisation(),
+        "init_from": settings.init_from,
     }
     training = {
         **settings.optimisation(),
         "n_train": int(train_idx.size),
         "n_val": int(val_idx.size),
+        **({} if settings.init_from is None else {"init_from": str(settings.init_from)}),
     }
     checkpoint_meta = checkpoint_meta_for(
         model_name, full_hparams, class_names, (window, rows, cols), meta, training
@@ -300,6 +302,10 @@ def train_model(
             scheduler.load_state_dict(state["scheduler"])
             run = _Progress.from_state(state["progress"])
             resumed_from = run.epoch + 1
+        elif settings.init_from is not None:
+            model.load_state_dict(
+                _initial_weights(settings.init_from, model_name, full_hparams, class_names, windows)
+            )
         else:
             model.set_input_scale(fit_input_scale(windows, train_idx, settings.seed))
 
@@ -377,6 +383,41 @@ def train_model(
         resumed_from_epoch=resumed_from,
         meta=final_meta,
     )
+
+
+def _initial_weights(
+    directory: str | Path,
+    model_name: str,
+    hparams: Mapping[str, Any],
+    class_names: Sequence[str],
+    windows: Any,
+) -> dict[str, torch.Tensor]:
+    """The state dict of the checkpoint in ``directory`` (fine-tuning's start, input scale
+    included), refused with a :class:`ConfigError` unless it is the model this run trains."""
+    try:
+        start, meta = load_checkpoint(directory)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"cannot start from {directory}: {exc}") from exc
+    _, window, rows, cols = (int(s) for s in windows.shape)
+    theirs = {
+        "model": meta.model_name,
+        "hyperparameters": to_jsonable(resolve_hparams(meta.model_name, meta.hparams)),
+        "classes": list(meta.class_names),
+        "window shape": [meta.window, meta.rows, meta.cols],
+    }
+    ours = {
+        "model": model_name,
+        "hyperparameters": to_jsonable(dict(hparams)),
+        "classes": list(class_names),
+        "window shape": [window, rows, cols],
+    }
+    for what, value in ours.items():
+        if theirs[what] != value:
+            raise ConfigError(
+                f"cannot start from {directory}: its {what} ({theirs[what]}) differ from this "
+                f"run's ({value})"
+            )
+    return start.state_dict()
 
 
 def _augmented(batch: np.ndarray, rng: np.random.Generator, scale: float) -> np.ndarray:
