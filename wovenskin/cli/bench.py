@@ -148,6 +148,50 @@ def bench_recognition(
         err_console.print(f"wall time {result.wall_s:.1f} s", highlight=False)
 
 
+@bench_app.command("gestures")
+@user_errors
+def bench_gestures(
+    model: Path = MODEL,
+    streams: int = typer.Option(4, help="Mixed independent streams for recognition (0: none)."),
+    seconds: float = typer.Option(120.0, help="Length of each mixed stream."),
+    seed: int = typer.Option(
+        22000,
+        help="Base seed: mixed streams seed, seed+1, ...; flicks seed+1000+k; held "
+        "swipes seed+2000+k.",
+    ),
+    flicks: int = typer.Option(40, help="Flicks through the simulated arm (0: none)."),
+    held: int = typer.Option(14, help="Held swipes through the simulated arm (0: none)."),
+    hold: float = typer.Option(2.5, help="Seconds a held swipe's finger stays still."),
+    save_streams: Path = typer.Option(
+        None, help="Folder to keep every generated stream in (labelled-stream .npz)."
+    ),
+    min_probability: float = typer.Option(
+        None, help="Least class probability that counts (default: the model's recommendation)."
+    ),
+    threads: int = THREADS,
+    json_out: bool = JSON_OUT,
+) -> None:
+    """Recognition and arm motion on independent labelled streams (people and skins made
+    apart from the simulator): event F1, false activations, recall per class, latency;
+    flicks and held swipes on the simulated TM5-900: moved, travel, brake and rest."""
+    from wovenskin.bench.gestures import run_gestures_benchmark
+    from wovenskin.recognition.pipeline import load_recognizer
+
+    recognizer = load_recognizer(model, threads=threads)
+    settings = pipeline_settings(recognizer, 1, 100.0, min_probability)
+    with err_console.status("bench gestures...") as status:
+        result = run_gestures_benchmark(
+            recognizer, settings, streams, seconds, seed, flicks, held, hold,
+            progress=lambda what: status.update(f"bench gestures: {what}"),
+            save_dir=save_streams,
+        )  # fmt: skip
+    for message in result.warnings:
+        warn(message)
+    show_bench(result, json_out)
+    if json_out:
+        err_console.print(f"wall time {result.wall_s:.1f} s", highlight=False)
+
+
 @bench_app.command("model")
 @user_errors
 def bench_model(
