@@ -132,7 +132,7 @@ def test_eval_stream_json_and_table(model_dir, streams) -> None:
     assert document["settings"] == {
         "every": 1, "dwell_s": 0.1, "min_probability": 0.0, "keep_probability": None,
         "max_switches": 1, "start_within_s": 0.2, "flick_s": 0.075, "flick_gap_s": 0.05,
-        "flick_probability": 0.9, "flick_after_s": 0.3,
+        "flick_probability": 0.9, "flick_after_s": 0.3, "smoothing_s": None,
     }  # fmt: skip
     table = runner.invoke(app, ["eval-stream", str(streams[0]), "--model", str(model_dir)])
     assert table.exit_code == 0

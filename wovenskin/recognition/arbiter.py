@@ -11,6 +11,9 @@ window ending there (:mod:`~wovenskin.recognition.streaming`).
 
 Rules (docs/gestures.md, "Execution rules" and the resting paragraph before them):
 
+- With ``smoothing_s`` (``None``: off) every prediction's probabilities are first replaced
+  by the mean of the touch's predictions of the last ``smoothing_s``
+  (:mod:`~wovenskin.recognition.smoothing`); the rules below then read those rows.
 - A prediction *recognises* class ``g`` when ``g`` is its most probable class, ``g`` is
   not ``invalid`` and its probability reaches ``min_probability``; otherwise it
   recognises nothing.  ``invalid`` and no contact never start an action.
@@ -92,6 +95,7 @@ from wovenskin.recognition.performing import PerformingDetector as PerformingDet
 from wovenskin.recognition.performing import PerformingSettings as PerformingSettings
 from wovenskin.recognition.performing import check_positive
 from wovenskin.recognition.performing import touch_features as touch_features
+from wovenskin.recognition.smoothing import ProbabilitySmoother
 
 DWELL = "dwell"
 PREEMPT = "preempt"
@@ -142,6 +146,7 @@ class ArbiterSettings:
     flick_gap_s: float = FLICK_GAP_S
     flick_probability: float | None = FLICK_PROBABILITY
     flick_after_s: float = FLICK_AFTER_S
+    smoothing_s: float | None = None
 
     def __post_init__(self) -> None:
         check_positive("dwell_s", self.dwell_s)
@@ -158,6 +163,9 @@ class ArbiterSettings:
             g = getattr(self, name)
             if not (isinstance(g, int | float) and math.isfinite(g) and g >= 0):
                 raise ConfigError(f"{name} must be a number >= 0, got {g!r}")
+        m = self.smoothing_s
+        if m is not None and not (isinstance(m, int | float) and math.isfinite(m) and m > 0):
+            raise ConfigError(f"smoothing_s must be None or a number > 0, got {m!r}")
         w = self.start_within_s
         if w is not None and not (isinstance(w, int | float) and math.isfinite(w) and w >= 0):
             raise ConfigError(f"start_within_s must be None or a number >= 0, got {w!r}")
@@ -175,6 +183,11 @@ class ArbiterSettings:
     def flick_frames(self, sample_rate_hz: float) -> int | None:
         """The flick rule's shortest streak in frames (None: no flicks)."""
         return None if self.flick_s is None else int(round(self.flick_s * sample_rate_hz))
+
+    def smoothing_frames(self, sample_rate_hz: float) -> int | None:
+        """The smoothing time in frames (at least 1; None: no smoothing)."""
+        s = self.smoothing_s
+        return None if s is None else max(1, int(round(s * sample_rate_hz)))
 
 
 def recognised_classes(
@@ -214,6 +227,8 @@ class Arbiter:
         self._suppressed = False
         self._last_performing: int | None = None
         self._flick_frames = self.settings.flick_frames(sample_rate_hz)
+        smoothing = self.settings.smoothing_frames(sample_rate_hz)
+        self._smoother = None if smoothing is None else ProbabilitySmoother(smoothing)
         keep = self.settings.keep_probability
         self._keep_probability = (
             self.settings.min_probability
@@ -269,13 +284,16 @@ class Arbiter:
     ) -> list[CommandChange]:
         """One frame; ``probabilities`` ``(K,)`` when the model ran on it. Returns its changes
         (none, one, or a flick and its lift-off)."""
-        if probabilities is None:
-            return self._step(float(t), bool(touched), bool(performing), None)
-        row = np.asarray(probabilities, dtype=np.float64).reshape(1, -1)
-        if row.shape[1] != len(self.class_names):
+        row = None if probabilities is None else np.asarray(probabilities, dtype=np.float64)
+        if row is not None and row.reshape(1, -1).shape[1] != len(self.class_names):
             raise ValueError(
-                f"expected {len(self.class_names)} class probabilities, got {row.shape[1]}"
+                f"expected {len(self.class_names)} class probabilities, got {row.size}"
             )
+        if self._smoother is not None:
+            row = self._smoother.step(bool(touched), None if row is None else row.reshape(-1))
+        if row is None:
+            return self._step(float(t), bool(touched), bool(performing), None)
+        row = row.reshape(1, -1)
         names = self.class_names
         recognised = int(recognised_classes(row, names, self.settings.min_probability)[0])
         strong = int(recognised_classes(row, names, self._flick_probability)[0])
@@ -308,6 +326,8 @@ class Arbiter:
                 f"probabilities must be shaped ({n}, {len(self.class_names)}), "
                 f"got {probabilities.shape}"
             )
+        if self._smoother is not None:
+            probabilities = self._smoother.run(touched, predicted, probabilities)
         recognised = np.full(n, NOTHING, dtype=np.int64)
         strong = np.full(n, NOTHING, dtype=np.int64)
         kept = np.full(n, NOTHING, dtype=np.int64)
