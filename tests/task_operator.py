@@ -75,8 +75,27 @@ class OperatorError(AssertionError):
     """The operator could not do a step (a test failure with what it saw)."""
 
 
+class HeldBack(OperatorError):
+    """Three presses in a row along one axis went nowhere (a limit holds the arm back)."""
+
+
 class Missed(Exception):
-    """A grasp did not hold the object (pushed aside, or not lifted): try it again."""
+    """A grasp did not hold the object (pushed aside, not lifted, dropped): try it again."""
+
+
+class NoProgress(OperatorError):
+    """Short moves that move the arm but not what the operator steers by."""
+
+
+class Dropped(Exception):
+    """The carried shape is back on the table (it slipped out of the fingers)."""
+
+
+def _watchdog_stop(state: dict) -> bool:
+    """Whether the stop holding the arm is a watchdog's (the skin or command stream fell
+    silent): the session clears it by itself once frames flow and nothing is held."""
+    stops = state["safety"]["stops"]
+    return bool(stops) and stops[-1].get("source") in ("skin watchdog", "command watchdog")
 
 
 def wrap(angle: float, period: float = 2 * math.pi) -> float:
@@ -185,7 +204,10 @@ class Operator:
 
         def quiet(s: dict) -> bool:
             if s["safety"]["stopped"]:
-                raise OperatorError(f"the robot stopped: {s['safety']['stops'][-1:]}")
+                if not _watchdog_stop(s):
+                    raise OperatorError(f"the robot stopped: {s['safety']['stops'][-1:]}")
+                still["n"] = 0  # a watchdog stop ends by itself once frames flow again
+                return False
             ok = s["teleop"]["held"] is None and not s["robot"]["moving"]
             ok = ok and s["robot"]["tcp_speed"] < 5e-4
             still["n"] = still["n"] + 1 if ok else 0
@@ -197,12 +219,21 @@ class Operator:
         self.view.wait(lambda s: self.view.commands(s) >= count, timeout_s, "the command")
 
     def align(
-        self, axis: str, error, tol: float, timeout_s: float = 120.0, presses: bool = True
+        self,
+        axis: str,
+        error,
+        tol: float,
+        timeout_s: float = 120.0,
+        presses: bool = True,
+        stall_after: int | None = None,
     ) -> None:
         """Drive ``axis`` until ``|error(state)| <= tol``; ``error`` is goal minus now in
         the axis's direction (m or rad), read from the server's state.  ``presses``
         False: short moves only (toward contact, where a held move's overshoot would push
-        an object or jam it against a mold's rim)."""
+        an object or jam it against a mold's rim).  ``stall_after``: NoProgress after that
+        many short moves in a row that brought the error down by less than a tenth of what
+        they asked (a held shape that turns in the fingers instead of with them)."""
+        stalled = 0
         kind = self._kind(axis)
         v, a = self.speed[kind], self.accel[kind]
         deadline = time.monotonic() + timeout_s
@@ -239,6 +270,9 @@ class Operator:
             self._sent(before + self.driver.nudge(axis, sign, asked))
             state = self.settle()
             done = sign * (e - float(error(state)))  # the way made toward the goal
+            stalled = stalled + 1 if done < 0.1 * asked else 0
+            if stall_after is not None and stalled >= stall_after:
+                raise NoProgress(f"{axis}: {stalled} short moves in a row left it at {e:+.4f}")
             if not exact:  # learn how far a nudge goes: ask for more (less) next time
                 change = abs(e) / done if done > 1e-6 else 2.0
                 self.gain[kind] = float(np.clip(gain * np.clip(change, 0.7, 1.4), 0.5, 3.0))
@@ -257,7 +291,11 @@ class Operator:
         while time.monotonic() < deadline:
             state = self.view.state()
             if state["safety"]["stopped"]:
-                raise OperatorError(f"the robot stopped: {state['safety']['stops'][-1:]}")
+                if not _watchdog_stop(state):
+                    raise OperatorError(f"the robot stopped: {state['safety']['stops'][-1:]}")
+                # a stall of the stream on a loaded machine: let go, it resumes by itself
+                self.log(f"{axis}: {state['safety']['stops'][-1]['reason']}; let go")
+                return True
             now = self._measure(axis, self.view.live(state))
             moved = now - self._measure(axis, state)
             if axis in ROTATIONS:
@@ -272,7 +310,8 @@ class Operator:
                 self.stuck += 1
                 self.log(f"{axis}: no motion while pressed (held back: {held}); let go")
                 if self.stuck >= 3:
-                    raise OperatorError(f"{axis}: held back three presses in a row: {held}")
+                    self.stuck = 0
+                    raise HeldBack(f"{axis}: held back three presses in a row: {held}")
                 return True
             time.sleep(0.01)
         raise OperatorError(f"{axis}: the goal did not come near in {timeout_s} s")
@@ -290,13 +329,21 @@ class Operator:
     def align_xy(self, error, tol: float, passes: int = 4) -> None:
         """Bring both ``error(state)[0]`` (x) and ``[1]`` (y) within ``tol``: y then x,
         again while one drifted (an interface in the tool frame moves along the tool's
-        axes, which a turned gripper has off the base's)."""
+        axes, which a turned gripper has off the base's).  An axis held back (a turned
+        gripper's key carries the TCP along the diagonal to the edge of the reach, or
+        near the base to the elbow's fold limit) is left for the other, as a person does:
+        that one brings the TCP back, and the next pass tries it again."""
+        held: HeldBack | None = None
         for _ in range(passes):
             for i, axis in ((1, "y"), (0, "x")):
-                self.align(axis, lambda s, i=i: error(s)[i], tol)
+                try:
+                    self.align(axis, lambda s, i=i: error(s)[i], tol)
+                except HeldBack as exc:
+                    held = exc
+                    self.log(f"{exc}: the other axis first")
             if np.all(np.abs(error(self.settle())[:2]) <= tol):
                 return
-        raise OperatorError(f"x, y: error {error(self.view.state())[:2]} > {tol}")
+        raise OperatorError(f"x, y: error {error(self.view.state())[:2]} > {tol} ({held})")
 
     def move_tcp(self, axis: str, goal: float, tol: float = 0.002, presses: bool = True) -> None:
         i = TRANSLATIONS.index(axis)
@@ -391,10 +438,26 @@ class Operator:
             self.gripper(False)
             raise Missed("not lifted by the grasp")
         mold = np.array([ROW_X[SHAPES.index(shape)], MOLD_Y])
-        self.align_xy(lambda s: mold - obj(s)[0][:2], 0.006)
-        if shape.symmetry is not None:
-            self.align("rz", lambda s: -wrap(obj(s)[1], shape.symmetry), math.radians(2))
-        self.align_xy(lambda s: mold - obj(s)[0][:2], 0.0018)  # the pocket's clearance: 3 mm
+
+        def to_mold(s: dict) -> np.ndarray:
+            """The way to the mold, while the shape is still off the table (a shape that
+            slipped out of the fingers stays behind: carrying on would drive the empty
+            gripper on to the edge of the reach, where the arm stops at a singularity)."""
+            position = obj(s)[0]
+            if position[2] < resting_z + 0.005:
+                raise Dropped(f"dropped at ({position[0]:.3f}, {position[1]:.3f}) on the way")
+            return mold - position[:2]
+
+        try:
+            self.align_xy(to_mold, 0.006)
+            if shape.symmetry is not None:  # (a shape turning in the fingers: grasp again)
+                turn = lambda s: -wrap(obj(s)[1], shape.symmetry)  # noqa: E731
+                self.align("rz", turn, math.radians(2), stall_after=6)
+            self.align_xy(to_mold, 0.0018)  # the pocket's clearance: 3 mm
+        except (Dropped, NoProgress) as lost:  # open, up, and pick it up again
+            self.gripper(False)
+            self.move_tcp("z", travel_z, 0.006)
+            raise Missed(str(lost)) from None
         # down until the base is 3 mm above the table, the fingertips above the mold's
         # walls (a finger beside the object stands over the wall), open
         state = self.settle()

@@ -158,13 +158,14 @@ def test_approaching_the_wrist_singularity_slows_then_stops(ik: DifferentialIK) 
     for i in slowed:  # linear slow-down between the thresholds
         expected = np.clip((THRESHOLDS.hard_stop - infos[i].condition) / 13.0, 0.0, 1.0)
         assert infos[i].scale == pytest.approx(expected, abs=1e-9)
-        assert speeds[i] == pytest.approx(expected * full, rel=0.02, abs=1e-9)
+        # (within 1e-6 of the twist: the QP's own tolerance where the scale nears zero)
+        assert speeds[i] == pytest.approx(expected * full, rel=0.02, abs=1e-6 * full)
     assert abs(q[4]) > np.deg2rad(5.0)
 
 
 def test_motion_away_from_the_singularity_is_not_slowed(ik: DifferentialIK) -> None:
     q = tm5_900.INITIAL_Q.copy()
-    q[4] = np.deg2rad(12.0)  # past the hard stop
+    q[4] = np.deg2rad(8.0)  # past the hard stop (it stops 10.6 degrees from the singularity)
     twist = wrist_twist(q, 0.5)
     velocity, info = ik.step(q, twist, DT)
     assert info.condition > THRESHOLDS.hard_stop

@@ -12,9 +12,10 @@ itself on the task's own success; the robot is operated by
 :class:`task_operator.Operator`, closed loop on the session's state read on the server.
 The last test runs the study report on the folder and checks its tables and plots.
 
-The study's mapping doubles the default speeds (100 mm/s, 30 deg/s, with doubled
-accelerations): an experimenter's setting that keeps each completion near a minute of wall
-time (the skin's pick-and-place takes four to five); trials may last 10 minutes.  Skipped
+The study's mapping doubles the default speeds (100 mm/s, 30 deg/s; accelerations 0.5 m/s^2
+and 180 deg/s^2, the study's since issue 15 whatever the defaults): an experimenter's
+setting that keeps each completion near a minute of wall time (the skin's pick-and-place
+takes four to five); trials may last 10 minutes.  Skipped
 without Chromium or Playwright unless ``WOVENSKIN_REQUIRE_BROWSER=1``; the wall time of
 every completion is written to ``artifacts/browser/study-timings.json``.
 """
@@ -61,8 +62,8 @@ SIM_SKIN = "sim:auto=0,seed=11"  # the virtual skin: the page's mouse on the sim
 SPEEDS = {  # the default mapping's [motion] values -> the study's
     "linear_speed = 0.05": "linear_speed = 0.1",
     "angular_speed = 15.0": "angular_speed = 30.0",
-    "linear_accel = 0.25": "linear_accel = 0.5",
-    "angular_accel = 90.0": "angular_accel = 180.0",
+    "linear_accel = 0.5 ": "linear_accel = 0.5 ",  # the default is the study's (0.25 before)
+    "angular_accel = 150.0": "angular_accel = 180.0",
 }
 TIMINGS: dict[str, dict] = {}
 
@@ -209,12 +210,15 @@ def test_a_study_trial_completes_the_task(page, dashboard, task, interface) -> N
     assert last["outcome"] == "success", (last, lines[-20:])
     assert summary["outcome"] == "success" and summary["commands"] > 0
     assert summary["task"] == task and summary["interface"] == interface
-    measures = view.task_state()
-    assert measures["succeeded"] and not measures["failed"]
+    # the task's measures as the trial recorded them when it ended on the task's success
+    # (read live a moment later, a drop still leaving the tipped cup is "airborne")
+    end = summary["measures"]
     if task == "pick_place":
-        assert measures["seated"] == measures["total"] == 3
+        assert end["objects_seated"] == end["objects_total"] == 3
+        assert view.task_state()["succeeded"]  # shapes at rest in their molds stay seated
     else:
-        assert measures["spilled"] == 0 and measures["in_cup"] <= 5
+        assert end["particles_spilled"] == 0 and end["particles_airborne"] == 0
+        assert end["particles_in_cup"] <= 5
     assert page.problems == []
 
 

@@ -340,10 +340,33 @@ class SimulatedOperator:
             yield from self.gripper(False)
             raise Missed("not lifted by the grasp")
         mold = np.array([row_x, MOLD_Y])
-        yield from self.align_xy(lambda: mold - obj()[0][:2], 0.006)
+
+        dropped: list[str] = []
+
+        def to_mold() -> np.ndarray:
+            # a shape that slipped out stays behind: a person sees it and picks it up
+            # again (steering by it would drive the empty gripper on to the reach's edge);
+            # no way left to go ends the move, and the plan checks (predicates never raise)
+            position = obj()[0]
+            if position[2] < resting_z + 0.005:
+                if not dropped:
+                    dropped.append(f"dropped at ({position[0]:.3f}, {position[1]:.3f})")
+                return np.zeros(2)
+            return mold - position[:2]
+
+        def pick_up_again() -> Plan:
+            yield from self.gripper(False)
+            yield from self.move_tcp("z", travel_z, 0.006)
+            raise Missed(f"{dropped[0]} on the way to its mold")
+
+        yield from self.align_xy(to_mold, 0.006)
+        if dropped:
+            yield from pick_up_again()
         if shape.symmetry is not None:
             yield from self.align("rz", lambda: -wrap(obj()[1], shape.symmetry), math.radians(2))
-        yield from self.align_xy(lambda: mold - obj()[0][:2], 0.0018)
+        yield from self.align_xy(to_mold, 0.0018)
+        if dropped:
+            yield from pick_up_again()
         yield from self.settle()
         drop = obj()[0][2] - (shape.height / 2 + 0.003)
         goal = max(self.tcp()[2] - drop, MOLD_HEIGHT + 0.006)
