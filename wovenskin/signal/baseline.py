@@ -50,7 +50,14 @@ and owns everything that depends on the baseline:
   * *stale contacts*: a channel frozen without a break for ``stale_contact_blocks``
     blocks while reading less than ``stale_contact_rel`` above baseline, or for
     ``max_contact_blocks`` blocks whatever it reads, is re-baselined to its block
-    median: the last guard against a "contact" that is really a baseline error.
+    median: the last guard against a "contact" that is really a baseline error.  While
+    a hand is near, that never lowers a baseline: the channels around a resting hand
+    are frozen as its neighbours, and on a mutual-capacitance skin its grounded fringe
+    field holds them *below* their resting level for as long as it rests.  Re-baselined
+    there after a long hold, they would read a phantom contact the moment the hand
+    lifts (their true level, 10-30 noise sds above the lowered baseline), hold the skin
+    touched for another ``stale_contact_s`` and hide the lift from the lift detector.
+    A stale contact is a baseline too *low*, which re-baselining raises.
 
 Because the baseline only changes at block ends, from the frames of that block, the
 tracker's results do not depend on how frames are chunked.
@@ -321,7 +328,8 @@ class BaselineTracker:
         if self._max_contact_blocks > 0:
             stuck |= frozen_for >= self._max_contact_blocks
         if stuck.any():
-            new = np.where(stuck, level, new)
+            # While a hand is near, never lower a baseline (module doc): keep it then.
+            new = np.where(stuck, np.maximum(level, new) if hand_near else level, new)
             self._last_free_block[stuck] = index
         self._set_baseline(np.where(self.live, new, baseline))
         self._block_active.fill(False)

@@ -134,6 +134,8 @@ class ConditioningConfig:
       left by an interference burst; fingers rest for seconds, not longer); 0 disables.
     - ``max_contact_s``: a channel frozen for longer than this is re-baselined whatever
       it reads (a guard against a contact stuck by a baseline step); 0 disables it.
+      Neither rule lowers a baseline while a hand is near: a resting hand's fringe field
+      holds its neighbours below their resting level (see :mod:`~wovenskin.signal.baseline`).
 
     Calibration:
 
