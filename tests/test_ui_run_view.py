@@ -89,16 +89,21 @@ def test_the_screen_says_what_holds_the_arm_back_and_when_the_recogniser_is_unsu
 
     home_tcp = np.array([0.5175, -0.1223, 0.32105])  # the simulated TM5-900's starting TCP
     limits = SafetyLimits(workspace_lower=home_tcp - 0.002, workspace_upper=home_tcp + 0.002)
-    session = session_on_replay(tmp_path, limits=limits)  # any swipe meets a face at once
+    seen: list[str] = []
+
+    def look(s) -> None:  # the screen as a view would draw it between two ticks
+        if not seen and s.holding():
+            seen.append(screen_text(render_run(s)))
+
+    # any swipe meets a face at once; a fast replay brings whole seconds a step, so the
+    # screen is drawn from the tick where the arm is held back
+    session = session_on_replay(tmp_path, limits=limits, on_tick=look)
     session.start()
-    held = ""
-    while not session.state.ended and not held:
+    while not session.state.ended and not seen:
         session.step()
-        text = screen_text(render_run(session))
-        if "held back" in text:
-            held = text
     session.close()
-    assert "workspace box" in held
+    held = seen[0] if seen else ""
+    assert "held back" in held and "workspace box" in held
     session.state.unsure = "unsure: swipe_left 0.55 / swipe_left_2f 0.40"
     assert "unsure: swipe_left 0.55 / swipe_left_2f 0.40" in screen_text(render_run(session))
 

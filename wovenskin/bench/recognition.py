@@ -292,7 +292,9 @@ class RecognitionBenchResult:
         times = Text(
             f"{overall}; wall time {self.wall_s:.1f} s (simulation {self.simulate_s:.1f} s, "
             f"pipeline {self.pipeline_s:.1f} s); base seed {self.base_seed}; settings "
-            + ", ".join(f"{k} {v:g}" for k, v in self.settings.items())
+            + ", ".join(
+                f"{k} {'off' if v is None else format(v, 'g')}" for k, v in self.settings.items()
+            )
         )
         return Group(table, targets, times)
 
