@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wovenskin.control.mapping import ActionMapping, TwistAction
+from wovenskin.control.profile import SpeedProfile
 from wovenskin.robots.base import Pose
 
 MAX_NUDGE_S = 0.4  # s: a nudge the safety layer holds back ends after this long
@@ -55,7 +56,7 @@ class GestureMotion:
         self._command: _Command | None = None
 
     @property
-    def profile(self):
+    def profile(self) -> SpeedProfile:
         return self.mapping.settings.profile
 
     @property
