@@ -2,11 +2,13 @@
 
 Files, checkpoints and command logs carry these names, never bare class indices.  What
 each gesture makes the robot do is the mapping file's business
-(``wovenskin/control/default_mapping.toml``), not the vocabulary's.
+(``wovenskin/control/default_mapping.toml``), not the vocabulary's.  A user's own gestures
+(:mod:`wovenskin.custom_gestures`) join these names through :func:`known_classes`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from wovenskin.errors import ConfigError
@@ -46,9 +48,20 @@ CLASS_NAMES: tuple[str, ...] = (*GESTURE_NAMES, INVALID)
 """All 15 classes: the 14 gestures and ``invalid`` last."""
 
 
-def check_name(name: str) -> str:
-    """Return ``name`` if it is one of :data:`CLASS_NAMES`, else raise :class:`ConfigError`
-    (a ``ValueError``)."""
-    if name not in CLASS_NAMES:
-        raise ConfigError(f"unknown gesture {name!r}; known: {', '.join(CLASS_NAMES)}")
+def known_classes(extra: Iterable[str] = ()) -> tuple[str, ...]:
+    """The class names a mapping or model knows: :data:`CLASS_NAMES`, then ``extra`` (a
+    mapping's custom gestures, a model's ``meta.json`` class names) not already there."""
+    out = list(CLASS_NAMES)
+    for name in extra:
+        if str(name) not in out:
+            out.append(str(name))
+    return tuple(out)
+
+
+def check_name(name: str, known: Iterable[str] | None = None) -> str:
+    """Return ``name`` if it is one of ``known`` (default :data:`CLASS_NAMES`; see
+    :func:`known_classes`), else raise :class:`ConfigError` (a ``ValueError``)."""
+    names = CLASS_NAMES if known is None else tuple(known)
+    if name not in names:
+        raise ConfigError(f"unknown gesture {name!r}; known: {', '.join(names)}")
     return name

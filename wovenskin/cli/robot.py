@@ -204,8 +204,9 @@ def _run_dashboard(
         token = new_token()
     first = {"record": record, "trace": TraceWriter(trace, overwrite=overwrite) if trace else None}
 
-    def opener(skin_spec: str, robot_spec: str, task=None):
-        # The recording and trace given on the command line belong to the first session.
+    def opener(skin_spec: str, robot_spec: str, task=None, model=model):
+        # The recording and trace given on the command line belong to the first session;
+        # ``model``: one the page put in use (record and adapt), else --model.
         recording, writer = first.pop("record", None), first.pop("trace", None)
         return open_session(
             skin_spec, robot_spec, model, mapping=mapping, poses=poses, trace=writer,

@@ -80,11 +80,12 @@ def simulate(
     from wovenskin.skin.layout import SkinLayout
 
     names = [check_name(g.strip()) for g in gestures.split(",") if g.strip()] or None
+    layout = SkinLayout(rows, cols).check_supported(where="--rows/--cols")
     check_new_output(out, overwrite)  # before the simulation, not after it
     stream = simulate_stream(
         seconds,
         seed,
-        layout=SkinLayout(rows, cols),
+        layout=layout,
         gestures=names,
         invalid_fraction=invalid_fraction,
     )
@@ -106,7 +107,13 @@ def record(
     operator: str = typer.Option("", help="Who runs the session."),
     skin_id: str = typer.Option("", help="Which physical skin (default: the device id)."),
     trials: int = typer.Option(3, help="Trials per gesture."),
-    gestures: str = typer.Option("", help="Comma-separated gestures (default: all 14)."),
+    gestures: str = typer.Option(
+        "", help="Comma-separated gestures (default: all 14, or every gesture of --mapping)."
+    ),
+    mapping: Path = typer.Option(
+        None,
+        help="Mapping file: prompt its [gestures], custom ones (docs/custom-gestures.md) too.",
+    ),
     invalid_trials: int = typer.Option(3, help="Trials of deliberate invalid touches."),
     countdown: float = typer.Option(2.0, help="Seconds of countdown before each trial."),
     trial_seconds: float = typer.Option(3.0, help="Seconds to perform each trial."),
@@ -116,12 +123,19 @@ def record(
 ) -> None:
     """Guided recording: prompts each gesture with a countdown and labels every trial.
 
-    Ctrl-C ends the session early: what was recorded is kept and the exit code is 130.
+    With --mapping, the gestures of its [gestures] table are prompted, a custom gesture
+    with its description, and labelled with their names.  Ctrl-C ends the session early:
+    what was recorded is kept and the exit code is 130.
     """
+    from wovenskin.control.mapping import ActionMapping
     from wovenskin.gestures import GESTURE_NAMES, check_name
     from wovenskin.ui.record_session import RecordPlan, run_record_session
 
-    names = [check_name(g.strip()) for g in gestures.split(",") if g.strip()] or list(GESTURE_NAMES)
+    action_mapping = ActionMapping.load(mapping) if mapping is not None else None
+    known = action_mapping.class_names if action_mapping is not None else None
+    default = action_mapping.prompted() if action_mapping is not None else list(GESTURE_NAMES)
+    names = [check_name(g.strip(), known) for g in gestures.split(",") if g.strip()] or default
+    custom = action_mapping.custom if action_mapping is not None else {}
     plan = RecordPlan(
         gestures=names,
         trials_per_gesture=trials,
@@ -142,6 +156,7 @@ def record(
         },
         overwrite=overwrite,
         console=console,
+        custom={name: custom[name] for name in dict.fromkeys(names) if name in custom},
     )
     console.print(str(summary), highlight=False, soft_wrap=True)
     if summary.interrupted:  # a script must see that the session was cut short

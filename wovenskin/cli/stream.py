@@ -44,10 +44,11 @@ def replay(
     from wovenskin.recording.files import unknown_labels, unknown_labels_message
 
     labelled = load_stream(stream)
-    unknown = unknown_labels(labelled.event_labels)
-    if unknown:  # replay only prints commands; eval-stream refuses to score such a stream
-        warn(unknown_labels_message(str(stream), unknown))
     recognizer = load_recognizer(model, threads=threads)
+    known = recognizer.class_names  # a model's custom gestures count as known
+    unknown = unknown_labels(labelled.event_labels, known)
+    if unknown:  # replay only prints commands; eval-stream refuses to score such a stream
+        warn(unknown_labels_message(str(stream), unknown, known))
     settings = pipeline_settings(recognizer, every, dwell_ms, min_probability)
     result = run_pipeline(labelled, recognizer, settings, on_warning=warn)
     if json_out:
@@ -86,11 +87,12 @@ def eval_stream(
     from wovenskin.recognition.pipeline import load_recognizer, load_stream, run_pipeline
     from wovenskin.recording.files import unknown_labels, unknown_labels_message
 
-    for path in streams:  # every file checked before minutes of pipeline are spent
-        unknown = unknown_labels(load_stream(path).event_labels)
-        if unknown:  # no command could match them: scored, they would pass as misses
-            raise DataError(f"{unknown_labels_message(str(path), unknown)}; not scored")
     recognizer = load_recognizer(model, threads=threads)
+    known = recognizer.class_names  # a model's custom gestures count as known
+    for path in streams:  # every file checked before minutes of pipeline are spent
+        unknown = unknown_labels(load_stream(path).event_labels, known)
+        if unknown:  # no command could match them: scored, they would pass as misses
+            raise DataError(f"{unknown_labels_message(str(path), unknown, known)}; not scored")
     settings = pipeline_settings(recognizer, every, dwell_ms, min_probability)
     rows, details = [], []
     for path in streams:
@@ -99,7 +101,7 @@ def eval_stream(
             warn(f"{path} has no labelled events")
         with err_console.status(f"running the pipeline on {path}..."):
             result = run_pipeline(labelled, recognizer, settings, on_warning=warn)
-        scores = score_stream(result.commands, labelled)
+        scores = score_stream(result.commands, labelled, known=known)
         rows.append((path.name, scores))
         details.append(
             {"path": str(path), "realtime_factor": result.realtime_factor, **scores.to_dict()}

@@ -9,6 +9,7 @@ ONNX-only ``eval`` works without torch.
 from __future__ import annotations
 
 import json
+from contextlib import nullcontext
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -31,7 +32,13 @@ from wovenskin.errors import ConfigError
 
 if TYPE_CHECKING:
     from wovenskin.training.config import TrainConfig
+    from wovenskin.training.distributed import Ranks
 
+DEVICE_HELP = "auto (a CUDA GPU when torch sees one, else the CPU), cpu or cuda."
+AMP_HELP = (
+    "Mixed precision on CUDA: auto (bf16, fp16 on GPUs without bf16), bf16, fp16 or off; "
+    "the CPU trains in float32."
+)
 SPLIT_HELP = "grouped (recordings, people and skins never seen in training) or random (85/15)."
 
 
@@ -98,9 +105,12 @@ def dataset(
     seed: int = typer.Option(0, help="Random seed: the same seed gives the same files."),
     workers: int = typer.Option(2, help="Worker processes."),
     dtype: str = typer.Option("float16", help="Storage of the windows: float16 or float32."),
+    rows: int = typer.Option(None, help="Simulated skin rows (default 10; streams bring theirs)."),
+    cols: int = typer.Option(None, help="Simulated skin columns (default 10)."),
     overwrite: bool = typer.Option(False, help="Replace an existing data set."),
 ) -> None:
     """Build a window data set from simulation or labelled streams."""
+    from wovenskin.skin.layout import DEFAULT_COLS, DEFAULT_ROWS, SkinLayout
     from wovenskin.training.datasets import build_dataset_from_streams, generate_sim_dataset
     from wovenskin.training.progress import dataset_progress
     from wovenskin.training.report import DatasetSummary
@@ -109,6 +119,10 @@ def dataset(
     settings = WindowSettings(recipe=recipe)
 
     files = [*(streams or []), *(more_streams or [])]
+    if files and (rows is not None or cols is not None):
+        raise ConfigError("--rows/--cols set a simulated skin's grid; streams bring their own")
+    grid = (DEFAULT_ROWS if rows is None else rows, DEFAULT_COLS if cols is None else cols)
+    layout = SkinLayout(*grid).check_supported(where="--rows/--cols")
     bar, update = dataset_progress(console, "windowing streams" if files else "simulating")
     with bar:
         if files:
@@ -120,6 +134,7 @@ def dataset(
             ds = generate_sim_dataset(
                 out, recordings, windows, invalid_windows, seconds, seed=seed, workers=workers,
                 progress=update, dtype=dtype, overwrite=overwrite, settings=settings,
+                layout=layout,
             )  # fmt: skip
     summary = DatasetSummary.of(ds)
     console.print(summary.table(ds.class_names))
@@ -155,53 +170,76 @@ def train(
         help="Fine-tune: start from this checkpoint's weights (e.g. wovenskin/models/default); "
         "same model, hyperparameters and classes.",
     ),
+    device: str = typer.Option("auto", help=DEVICE_HELP),
+    amp: str = typer.Option("auto", help=AMP_HELP),
 ) -> None:
-    """Train a gesture classifier (PyTorch) with early stopping, checkpoints and resume."""
+    """Train a gesture classifier (PyTorch) with early stopping, checkpoints and resume.
+
+    Several processes or GPUs: torchrun --nproc-per-node N -m wovenskin.cli train ...
+    """
     from wovenskin.training import runs
     from wovenskin.training.config import CAPTURE_DEFAULTS, TrainConfig
     from wovenskin.training.progress import TrainProgressDisplay
 
     require_torch("wovenskin train")
-    from wovenskin.training.compare import train_on_dataset  # needs torch
+    from wovenskin.training import distributed  # needs torch
+    from wovenskin.training.compare import train_on_dataset
 
     settings = {
         "batch_size": batch_size, "lr": lr, "seed": seed, "patience": patience,
         "split_seed": split_seed, "resume": resume, "threads": threads,
         "time_budget_s": None if time_budget is None else 60 * time_budget,
         "init_from": None if init_from is None else str(init_from),
+        "device": device, "amp": amp,
     }  # fmt: skip
     if captures is not None:
         if data is not None:
             raise ConfigError("give --data or --captures, not both")
+        if distributed.launched():
+            raise ConfigError("torchrun trains on window data sets (--data), not captures")
         if init_from is not None:
             raise ConfigError("--init-from fine-tunes on a window data set (--data), not captures")
         out = out or runs.default_captures_dir(captures)
         runs.check_checkpoint_dir(out, overwrite, resume)
-        # Captures keep their own recipe: only --model, --epochs, --seed, --threads and
-        # --resume apply (CAPTURE_DEFAULTS for the rest).
+        # Captures keep their own recipe: only --model, --epochs, --seed, --threads,
+        # --resume, --device and --amp apply (CAPTURE_DEFAULTS for the rest).
         config = replace(
             CAPTURE_DEFAULTS.with_model(model), seed=seed, threads=threads, resume=resume,
             epochs=CAPTURE_DEFAULTS.epochs if epochs is None else epochs,
-        )  # fmt: skip
-        _train_on_captures(captures, out, config)
+            device=device, amp=amp,
+        ).checked()  # fmt: skip
+        _train_on_captures(captures, out, config, _hardware_line(config, distributed.SINGLE))
         return
     model = model or TrainConfig.model
     out = out or runs.default_train_dir(model, split)
-    runs.check_checkpoint_dir(out, overwrite, resume)
     parameters = _json_object(hparams, "--hparams")
     config = TrainConfig.from_dict(
         {**settings, "model": model, "hparams": parameters,
          **({} if epochs is None else {"epochs": epochs})}
     )  # fmt: skip
-    ds = _open_or_build_dataset(data, console)
-    console.print(
-        f"training {model} on {ds.path} ({split} split) into {out}", highlight=False, soft_wrap=True
-    )
-    try:
-        with TrainProgressDisplay(console) as show:
-            result = train_on_dataset(ds, out, split, config, show)
-    except KeyboardInterrupt:
-        raise _interrupted(out) from None
+    with distributed.session(config.device) as ranks:
+        hardware = _hardware_line(config, ranks)  # an unusable device or precision: refused now
+        runs.check_checkpoint_dir(out, overwrite, resume)
+        distributed.barrier(ranks)  # every rank has checked before rank 0 writes
+        if ranks.active and data is None and not runs.default_dataset_exists():
+            raise ConfigError(
+                "under torchrun, build the data set first (wovenskin dataset) and give --data"
+            )
+        ds = _open_or_build_dataset(data, console)
+        if ranks.is_main:
+            console.print(
+                f"training {model} on {ds.path} ({split} split) into {out}, {hardware}",
+                highlight=False,
+                soft_wrap=True,
+            )
+        display = TrainProgressDisplay(console) if ranks.is_main else nullcontext(None)
+        try:
+            with display as show:
+                result = train_on_dataset(ds, out, split, config, show)
+        except KeyboardInterrupt:
+            raise _interrupted(out) from None
+    if not ranks.is_main:
+        return  # rank 0 reports
     v = result.validation
     resumed = f", resumed at epoch {result.resumed_from_epoch}" if result.resumed_from_epoch else ""
     console.print(
@@ -214,12 +252,28 @@ def train(
     )
 
 
-def _train_on_captures(path: Path, out: Path, config: TrainConfig) -> None:
+def _hardware_line(config: TrainConfig, ranks: Ranks) -> str:
+    """Where a run computes, in words: device, precision and processes."""
+    from wovenskin.training.device import amp_dtype, resolve_device  # needs torch
+
+    where = resolve_device(config.device, ranks.local_rank)
+    dtype = amp_dtype(config.amp, where)
+    text = "on the CPU (float32)" if where.type == "cpu" else f"on {where}"
+    if dtype is not None:
+        text += f" ({str(dtype).removeprefix('torch.')} mixed precision)"
+    if ranks.active:
+        text += f", {ranks.world_size} processes (DistributedDataParallel)"
+    return text
+
+
+def _train_on_captures(path: Path, out: Path, config: TrainConfig, hardware: str) -> None:
     from wovenskin.training.capture_train import train_on_captures  # needs torch
     from wovenskin.training.progress import TrainProgressDisplay
 
     console.print(
-        f"training on labelled captures {path} into {out}", highlight=False, soft_wrap=True
+        f"training on labelled captures {path} into {out}, {hardware}",
+        highlight=False,
+        soft_wrap=True,
     )
     try:
         with TrainProgressDisplay(console) as show:
@@ -383,6 +437,8 @@ def compare(
         1, help="Torch threads for training (one is fastest on a busy 2-core machine)."
     ),
     latency_repeats: int = typer.Option(300, help="Timed batch-1 calls per model."),
+    device: str = typer.Option("auto", help=DEVICE_HELP),
+    amp: str = typer.Option("auto", help=AMP_HELP),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
 ) -> None:
     """Train and score several models on the same data and split: the side-by-side table."""
@@ -391,7 +447,11 @@ def compare(
     from wovenskin.training.progress import TrainProgressDisplay
 
     require_torch("wovenskin compare")
+    from wovenskin.training import distributed
     from wovenskin.training.compare import compare_models  # needs torch
+
+    if distributed.launched():
+        raise ConfigError("compare runs in one process: under torchrun, use wovenskin train")
 
     names = [m.strip() for m in models.split(",") if m.strip()]
     splits = [s.strip() for s in split.split(",") if s.strip()]
@@ -406,7 +466,7 @@ def compare(
         {"batch_size": batch_size, "lr": lr, "seed": seed, "patience": patience,
          "split_seed": split_seed, "resume": resume, "threads": threads,
          "time_budget_s": None if time_budget is None else 60 * time_budget,
-         **({} if epochs is None else {"epochs": epochs})}
+         "device": device, "amp": amp, **({} if epochs is None else {"epochs": epochs})}
     )  # fmt: skip
     datasets = [_open_or_build_dataset(d, ui) for d in (data or [None])]
 

@@ -5,6 +5,10 @@ A TOML file (the packaged ``default_mapping.toml`` is docs/gestures.md's table) 
 ``[motion.profile]`` is the gestures' :class:`~wovenskin.control.profile.SpeedProfile`), a
 ``[poses]`` table (``hold_to_run``) and a ``[gestures]`` table mapping each gesture name to
 ``"translate <axis>"``, ``"rotate <axis>"``, ``"pose initial|home"`` or ``"none"``.
+A ``[custom_gestures.NAME]`` table defines a gesture of the user's own
+(:class:`~wovenskin.custom_gestures.CustomGesture`, ``docs/custom-gestures.md``), which
+``[gestures]`` may then map like a built-in one; a name in ``[gestures]`` that is neither
+built-in nor defined there is an error.
 :meth:`ActionMapping.load` validates it and reports the first problem as one line naming
 the file and the key; :meth:`ActionMapping.target_twist` turns a gesture into the
 base-frame twist the robot should move with at full speed.
@@ -30,8 +34,9 @@ from typing import Any, Literal
 import numpy as np
 
 from wovenskin.control.profile import SpeedProfile, profile_from_table
+from wovenskin.custom_gestures import CustomGesture, parse_custom_gestures
 from wovenskin.errors import ConfigError
-from wovenskin.gestures import CLASS_NAMES, INVALID
+from wovenskin.gestures import INVALID, known_classes
 from wovenskin.robots.base import Pose
 
 DEFAULT_MAPPING_FILE = "default_mapping.toml"
@@ -123,11 +128,27 @@ Action = TwistAction | PoseAction
 
 @dataclass(frozen=True)
 class ActionMapping:
-    """Gesture name -> action, plus the motion settings; build it with :meth:`load`."""
+    """Gesture name -> action, plus the motion settings; build it with :meth:`load`.
+
+    ``gestures`` lists the names of the file's ``[gestures]`` table in file order (those
+    mapped to ``"none"`` too); ``custom`` holds its ``[custom_gestures]`` definitions.
+    """
 
     actions: dict[str, Action] = field(default_factory=dict)
     settings: MotionSettings = field(default_factory=MotionSettings)
     source: str = "<built-in>"
+    gestures: tuple[str, ...] = ()
+    custom: dict[str, CustomGesture] = field(default_factory=dict)
+
+    @property
+    def class_names(self) -> tuple[str, ...]:
+        """The class names this mapping knows: the 15 built-in ones, then its custom ones."""
+        return known_classes(self.custom)
+
+    def prompted(self) -> list[str]:
+        """The gestures ``wovenskin record --mapping`` prompts: every name in ``[gestures]``
+        but ``invalid`` (a session prompts its invalid trials apart)."""
+        return [name for name in self.gestures if name != INVALID]
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> ActionMapping:
@@ -149,10 +170,12 @@ class ActionMapping:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(f"{source}: not valid TOML ({exc})") from None
-        _check_keys(data, {"motion", "poses", "gestures"}, "", source)
+        _check_keys(data, {"motion", "poses", "gestures", "custom_gestures"}, "", source)
         motion = _table(data, "motion", source)
         poses = _table(data, "poses", source)
         gestures = _table(data, "gestures", source)
+        custom = parse_custom_gestures(_table(data, "custom_gestures", source), source)
+        known = known_classes(custom)
         settings = _motion_settings(motion, source)
         _check_keys(poses, {"hold_to_run"}, "poses.", source)
         hold_to_run = poses.get("hold_to_run", True)
@@ -161,14 +184,17 @@ class ActionMapping:
         actions: dict[str, Action] = {}
         for gesture, spec in gestures.items():
             key = f"gestures.{gesture}"
-            if gesture not in CLASS_NAMES:
-                raise ConfigError(f"{source}: {key}: unknown gesture {gesture!r}")
+            if gesture not in known:
+                raise ConfigError(
+                    f"{source}: {key}: unknown gesture {gesture!r} (neither built-in nor "
+                    f"defined under [custom_gestures.{gesture}])"
+                )
             action = _parse_action(spec, hold_to_run, key, source)
             if action is not None and gesture == INVALID:
                 raise ConfigError(f"{source}: {key}: 'invalid' never starts an action; use 'none'")
             if action is not None:
                 actions[gesture] = action
-        return cls(actions, settings, source)
+        return cls(actions, settings, source, tuple(gestures), custom)
 
     def action_for(self, gesture: str | None) -> Action | None:
         """The action of ``gesture`` (``None`` for no command, ``invalid`` or unmapped)."""
@@ -179,7 +205,7 @@ class ActionMapping:
     def resolve(self, name: str) -> Action | None:
         """The action of a gesture name, or an action written as in the mapping file
         (``"translate +x"``, ``"rotate -z"``, ``"pose home"``); ``ConfigError`` otherwise."""
-        if name in CLASS_NAMES:
+        if name in self.class_names:
             return self.action_for(name)
         return _parse_action(name, self.hold_to_run, "action", "input")
 

@@ -348,7 +348,7 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         try:
             changes = list(self.pipeline.feed(block))
         except ValueError as exc:  # the command ends: no motion on frames we cannot trust
-            self._error(f"skin block of {len(times)} frames dropped: {exc}")
+            self._error(f"skin frames dropped: {exc}")  # one line however many frames
             ended = self.pipeline.reset(float(times[0]))
             changes = [] if ended is None else [ended]
         self._record_predictions(float(times[-1]))

@@ -4,7 +4,8 @@ Owns the file names of a checkpoint directory, :class:`CheckpointMeta` (``meta.j
 :func:`read_meta`, :func:`write_meta` and
 :class:`CheckpointError`.  :meth:`CheckpointMeta.check_input` is the guard every consumer
 calls before feeding a model: it refuses frames from another grid, window length, sample
-rate or conditioning with a one-line ``ValueError`` naming what differs.
+rate or conditioning with one :class:`ModelInputError` line (a ``ValueError``) naming what
+differs, which the command line prints as it is.
 
 Both :mod:`~wovenskin.recognition.onnx_runtime` (torch-free inference) and
 :mod:`~wovenskin.training.checkpoint` (saving and loading torch models) build on this
@@ -21,6 +22,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+from wovenskin.errors import DataError
 from wovenskin.io import atomic_write_bytes
 from wovenskin.signal.config import FLAG_ONLY_SETTINGS
 
@@ -34,6 +36,10 @@ SAMPLE_RATE_REL_TOL = 1e-3
 
 class CheckpointError(ValueError):
     """A checkpoint directory is missing, incomplete or corrupt."""
+
+
+class ModelInputError(DataError):
+    """Frames a model was not trained for: another grid, rate, window or conditioning."""
 
 
 def _conditioning_dict(conditioning: Any) -> dict[str, Any]:
@@ -133,20 +139,21 @@ class CheckpointMeta:
         sample_rate_hz: float,
         conditioning: Mapping[str, Any] | Any,
     ) -> None:
-        """Raise a one-line ``ValueError`` unless the input matches the training input."""
+        """Raise one :class:`ModelInputError` line unless the input matches the training input."""
         if (rows, cols) != (self.rows, self.cols) or not math.isclose(
             sample_rate_hz, self.sample_rate_hz, rel_tol=SAMPLE_RATE_REL_TOL
         ):
-            raise ValueError(
+            raise ModelInputError(
                 f"model expects {self.rows}x{self.cols} frames at {self.sample_rate_hz:g} Hz, "
-                f"got {rows}x{cols} at {sample_rate_hz:g} Hz"
+                f"got {rows}x{cols} at {sample_rate_hz:g} Hz: use a model trained for this "
+                "skin (docs/skins.md)"
             )
         if window != self.window:
-            raise ValueError(f"model expects windows of {self.window} frames, got {window}")
+            raise ModelInputError(f"model expects windows of {self.window} frames, got {window}")
         differences = conditioning_differences(self.conditioning, _conditioning_dict(conditioning))
         if differences:
             more = f" (+{len(differences) - 3} more)" if len(differences) > 3 else ""
-            raise ValueError(
+            raise ModelInputError(
                 "model was trained with other conditioning settings: "
                 + "; ".join(differences[:3])
                 + more

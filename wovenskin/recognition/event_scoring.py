@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wovenskin.gestures import CLASS_NAMES, INVALID
+from wovenskin.gestures import INVALID, known_classes
 from wovenskin.recognition.commandlog import CommandLike, changes_only
 from wovenskin.recording.formats import LabelledStream
 
@@ -154,7 +154,10 @@ class EventScores:
 
 
 def _events(
-    starts: Sequence[float], ends: Sequence[float], labels: Sequence[str]
+    starts: Sequence[float],
+    ends: Sequence[float],
+    labels: Sequence[str],
+    known: Iterable[str] = (),
 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     starts = np.asarray(starts, dtype=np.float64).reshape(-1)
     ends = np.asarray(ends, dtype=np.float64).reshape(-1)
@@ -169,11 +172,12 @@ def _events(
     if (ends < starts).any():
         k = int(np.flatnonzero(ends < starts)[0])
         raise ValueError(f"event {k} ends ({ends[k]:g} s) before it starts ({starts[k]:g} s)")
-    unknown = sorted({label for label in labels if label not in CLASS_NAMES})
+    names = known_classes(known)
+    unknown = sorted({label for label in labels if label not in names})
     if unknown:  # no command can ever match them: scored, they would pass as plain misses
         raise ValueError(
             f"cannot score events labelled {', '.join(map(repr, unknown))}: not gestures "
-            f"wovenskin knows ({', '.join(CLASS_NAMES)})"
+            f"wovenskin knows ({', '.join(names)})"
         )
     return starts, ends, labels
 
@@ -227,16 +231,20 @@ def score_commands(
     duration_s: float,
     tolerance_s: float = DETECTION_TOLERANCE_S,
     motion_start_s: Sequence[float | None] | None = None,
+    *,
+    known: Iterable[str] = (),
 ) -> EventScores:
     """Score one stream's commands against its labelled events (see the module doc).
 
-    ``motion_start_s`` (one per event, ``None``/NaN where unknown) adds motion latencies.
+    ``motion_start_s`` (one per event, ``None``/NaN where unknown) adds motion latencies;
+    ``known``: class names beyond the 15 built-in ones that events may carry (a model's
+    custom gestures).
     """
     if not (math.isfinite(duration_s) and duration_s >= 0):
         raise ValueError(f"stream duration must be a non-negative number, got {duration_s}")
     if not (math.isfinite(tolerance_s) and tolerance_s >= 0):
         raise ValueError(f"tolerance must be a non-negative number, got {tolerance_s}")
-    starts, ends, labels = _events(event_start_s, event_end_s, event_labels)
+    starts, ends, labels = _events(event_start_s, event_end_s, event_labels, known)
     motion = _motion_starts(motion_start_s, len(starts))
     activations = [(c.t, c.gesture) for c in changes_only(commands) if c.gesture is not None]
     scores = EventScores(duration_s=float(duration_s), n_activations=len(activations))
@@ -277,8 +285,11 @@ def score_stream(
     commands: Iterable[CommandLike],
     stream: LabelledStream,
     tolerance_s: float = DETECTION_TOLERANCE_S,
+    *,
+    known: Iterable[str] = (),
 ) -> EventScores:
-    """Score commands against a :class:`LabelledStream`'s events; its length from its frames.
+    """Score commands against a :class:`LabelledStream`'s events; its length from its frames
+    (``known``: as :func:`score_commands`).
 
     Motion latencies are scored where the stream's metadata records the events' motion
     starts (:func:`motion_starts`).
@@ -292,6 +303,7 @@ def score_stream(
         duration,
         tolerance_s,
         motion_start_s=motion_starts(stream),
+        known=known,
     )
 
 

@@ -46,6 +46,7 @@ from wovenskin.recognition.arbiter import (
     PerformingDetector,
     PerformingSettings,
 )
+from wovenskin.recognition.checkpoint_meta import ModelInputError
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.recognition.shipped import resolve_model_dir
 from wovenskin.recognition.streaming import Recognizer, StreamingRecognizer, model_window
@@ -54,6 +55,7 @@ from wovenskin.recording.formats import LabelledStream
 from wovenskin.signal.conditioner import LiveConditioner
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.signal.live_skin import LiveBlock
+from wovenskin.skin.layout import check_supported
 
 RESET = "reset"
 """Reason of the change that ends an active command when the pipeline is reset."""
@@ -185,6 +187,10 @@ class LivePipeline:
         self.last_t: float | None = None
         self.touched = False
         self._next_index: int | None = None  # conditioner index expected next (feed)
+        self.recorded: list[tuple[np.ndarray, ...]] | None = None
+        """Set to a list to collect the arbiter's inputs of every :meth:`process` call
+        (times, touched, performing, predicted, probabilities): other execution rules can
+        then be replayed on them without running the model again (``wovenskin adapt``)."""
 
     @classmethod
     def for_live_skin(
@@ -225,11 +231,20 @@ class LivePipeline:
     def feed(self, block: LiveBlock) -> list[CommandChange]:
         """One block from :meth:`~wovenskin.signal.live_skin.LiveSkin.step`; returns its changes.
 
-        A block whose conditioner frame index does not follow the previous block's (the
+        A block of another grid than the model's (a device that declared a new one) is one
+        :class:`~wovenskin.recognition.checkpoint_meta.ModelInputError` line.  A block whose
+        conditioner frame index does not follow the previous block's (the
         skin was recalibrated: a new conditioner started) first resets the pipeline, so
         no window mixes frames from two calibrations; the reset's change comes first.
         """
         cond = block.cond
+        shape = tuple(np.shape(cond.signal)[-2:])
+        if shape != self.streaming.shape:  # the device declared another grid since
+            rows, cols = self.streaming.shape
+            raise ModelInputError(
+                f"the skin now streams {shape[0]}x{shape[1]} frames, the model expects "
+                f"{rows}x{cols}: use a model trained for this skin (docs/skins.md)"
+            )
         index = np.asarray(cond.index)
         changes: list[CommandChange] = []
         if len(index) and self._next_index is not None and int(index[0]) != self._next_index:
@@ -256,6 +271,10 @@ class LivePipeline:
         predictions = self.streaming.push(signal, active, touched)
         performing = self.performing.update(signal.astype(np.float32, copy=False), active)
         touched = np.asarray(touched, dtype=bool).reshape(-1)
+        if self.recorded is not None:  # the arbiter's inputs, to replay other rules on
+            self.recorded.append(
+                (t, touched, performing, predictions.predicted, predictions.probabilities)
+            )
         changes = self.arbiter.run(
             t, touched, performing, predictions.predicted, predictions.probabilities
         )
@@ -314,12 +333,19 @@ class PipelineResult:
 
 def load_stream(stream: LabelledStream | str | os.PathLike) -> LabelledStream:
     """``stream`` itself, or the labelled stream read from a ``.npz`` or ``.wsrec`` path
-    (the kind decided by content: :func:`wovenskin.recording.files.read_stream`)."""
+    (the kind decided by content: :func:`wovenskin.recording.files.read_stream`); a grid or
+    rate the pipeline cannot use is one
+    :class:`~wovenskin.skin.layout.UnsupportedSkinError` line naming the file."""
     if isinstance(stream, LabelledStream):
-        return stream
-    if not os.path.isfile(stream):
+        labelled, where = stream, "the stream"
+    elif not os.path.isfile(stream):
         raise FileNotFoundError(f"{stream}: no such file")
-    return read_stream(stream, "the pipeline")
+    else:
+        labelled, where = read_stream(stream, "the pipeline"), str(stream)
+    shape = np.shape(labelled.frames)
+    if len(shape) == 3:  # run_pipeline names any other shape
+        check_supported(shape[1], shape[2], labelled.sample_rate_hz, where)
+    return labelled
 
 
 def run_pipeline(
@@ -330,6 +356,7 @@ def run_pipeline(
     conditioning: ConditioningConfig | None = None,
     block_frames: int | None = None,
     on_warning: Callable[[str], None] | None = None,
+    record: list | None = None,
 ) -> PipelineResult:
     """Calibrate, condition, recognise and arbitrate a whole labelled stream.
 
@@ -337,7 +364,8 @@ def run_pipeline(
     checkpoint meta gets the default settings at the stream's rate).  ``block_frames``
     ``None`` processes the stream as one block (fastest); an integer feeds the raw
     frames in blocks of that many, exactly as a live skin does.  Calibration warnings go
-    to ``on_warning`` and into the result.
+    to ``on_warning`` and into the result.  ``record``, a list, receives the arbiter's
+    inputs (:attr:`LivePipeline.recorded`).
     """
     stream = load_stream(stream)
     if block_frames is not None and not (isinstance(block_frames, int) and block_frames >= 1):
@@ -370,6 +398,7 @@ def run_pipeline(
         if on_warning is not None:
             on_warning(message)
 
+    pipeline.recorded = record
     conditioner = LiveConditioner(conditioning, rows, cols, on_warning=warn)
     started = time.perf_counter()
     step = n_frames if block_frames is None else block_frames

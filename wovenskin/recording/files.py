@@ -9,8 +9,9 @@ decides which by content (never by suffix alone), and :func:`read_stream`,
 :class:`~wovenskin.recording.untrusted.FormatError` for the same bad file (e.g.
 :data:`~wovenskin.recording.untrusted.NOT_OURS` for random bytes).
 
-:func:`unknown_labels` finds event labels that are none of wovenskin's gesture classes
-(``docs/gestures.md``): ``info`` flags them, scoring refuses them.
+:func:`unknown_labels` finds event labels that are none of the classes known (by default
+wovenskin's 15 of ``docs/gestures.md``; a model's ``meta.json`` class names or a mapping's
+custom gestures where given): ``info`` flags them, scoring refuses them.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from collections import Counter
 from collections.abc import Iterable
 from typing import Literal
 
-from wovenskin.gestures import CLASS_NAMES
+from wovenskin.gestures import known_classes
 from wovenskin.recording.formats import (
     LabelledCaptures,
     LabelledStream,
@@ -110,16 +111,19 @@ def read_captures(path: str | os.PathLike, purpose: str = "this") -> LabelledCap
     return read_labelled_captures(path)
 
 
-def unknown_labels(labels: Iterable[str]) -> Counter[str]:
-    """How often each label that is not one of wovenskin's 15 classes occurs."""
-    return Counter(str(label) for label in labels if str(label) not in CLASS_NAMES)
+def unknown_labels(labels: Iterable[str], known: Iterable[str] = ()) -> Counter[str]:
+    """How often each label that is none of wovenskin's 15 classes and of ``known`` (a
+    model's class names, a mapping's custom gestures) occurs."""
+    names = set(known_classes(known))
+    return Counter(str(label) for label in labels if str(label) not in names)
 
 
-def unknown_labels_message(where: str, unknown: Counter[str]) -> str:
-    """One line naming the unknown labels of ``where`` and what wovenskin knows."""
+def unknown_labels_message(where: str, unknown: Counter[str], known: Iterable[str] = ()) -> str:
+    """One line naming the unknown labels of ``where`` and what is known (wovenskin's 15
+    classes and ``known``)."""
     listed = ", ".join(f"{name!r} ({n} event{'s' if n > 1 else ''})" for name, n in
                        sorted(unknown.items()))  # fmt: skip
     return (
         f"{where}: unknown gesture label{'s' if len(unknown) > 1 else ''} {listed}; "
-        f"wovenskin knows {', '.join(CLASS_NAMES)}"
+        f"wovenskin knows {', '.join(known_classes(known))}"
     )

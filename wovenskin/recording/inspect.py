@@ -9,12 +9,14 @@ described correctly and a bad one gets the same message as from every other comm
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 from rich.markup import escape
 from rich.table import Table
 
+from wovenskin.custom_gestures import custom_from_settings
 from wovenskin.outputs import check_new_output
 from wovenskin.recording.files import (
     file_kind,
@@ -48,7 +50,8 @@ def describe_file(path: Path) -> Table:
     if kind == "stream":
         s = read_labelled_stream(path)
         _rows(table, s.frames, s.sample_rate_hz, float(s.t[-1] - s.t[0]) if len(s.t) else 0.0)
-        _label_rows(table, [str(x) for x in s.event_labels], str(path))
+        known = custom_from_settings((s.metadata or {}).get("settings"))
+        _label_rows(table, [str(x) for x in s.event_labels], str(path), known=known)
         if s.metadata:
             table.add_row("metadata", ", ".join(sorted(s.metadata))[:200])
     elif kind == "captures":
@@ -70,7 +73,8 @@ def describe_file(path: Path) -> Table:
                 table.add_row(key, str(rec.provenance[key]))
         table.add_row("calibrations", str(len(rec.calibrations)))
         trials = [lab.label for lab in rec.labels if lab.kind == LABEL_KIND_TRIAL]
-        _label_rows(table, [lab.label for lab in rec.labels], str(path), trials)
+        known = custom_from_settings(rec.settings)  # a recording's own custom gestures
+        _label_rows(table, [lab.label for lab in rec.labels], str(path), trials, known)
         table.add_row("annotations", str(len(rec.annotations)))
         table.add_row("closed cleanly", "yes" if rec.clean_close else "[yellow]no[/]")
         for warning in rec.warnings:
@@ -88,17 +92,21 @@ def _rows(table: Table, frames: np.ndarray, rate: float, duration: float) -> Non
 
 
 def _label_rows(
-    table: Table, labels: list[str], where: str, events: list[str] | None = None
+    table: Table,
+    labels: list[str],
+    where: str,
+    events: list[str] | None = None,
+    known: Iterable[str] = (),
 ) -> None:
-    """Label counts, and a warning row for ``events`` (default: all labels) that are not
-    gestures wovenskin knows (scoring refuses them)."""
+    """Label counts, and a warning row for ``events`` (default: all labels) that are
+    neither gestures wovenskin knows nor ``known`` (the custom gestures the file defines)."""
     counts = Counter(labels)
     table.add_row("events", str(len(labels)))
     if counts:
         table.add_row("labels", ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
-    unknown = unknown_labels(labels if events is None else events)
+    unknown = unknown_labels(labels if events is None else events, known)
     if unknown:
-        message = unknown_labels_message(where, unknown)
+        message = unknown_labels_message(where, unknown, known)
         table.add_row("warning", f"[yellow]{escape(message)}[/]")
 
 

@@ -8,7 +8,9 @@ polls).  ``start_s`` starts at the first frame with ``t >= start_s`` (file time)
 the stream clock keeps increasing.  A non-looping replay emits ``SourceEvent("end")`` once
 after its last frame.  The file's labels are available as :attr:`ReplaySource.events`
 (ground truth, in file time).  Bad files raise :class:`FormatError` when the source is
-created, never later.  A ``replay:FILE?...`` spec's options are :class:`ReplayOptions`.
+created, never later, and a grid or rate outside the supported range one
+:class:`~wovenskin.skin.layout.UnsupportedSkinError` line.  A ``replay:FILE?...`` spec's
+options are :class:`ReplayOptions`.
 """
 
 from __future__ import annotations
@@ -150,7 +152,8 @@ class ReplaySource(DevicelessSource):
         self._t = np.asarray(t, dtype=np.float64)
         self._seq = np.asarray(seq, dtype=np.int64)
         rows, cols = self._frames.shape[1:]
-        self._info = replace(recording.info, rows=rows, cols=cols, source=f"replay:{path}")
+        info = replace(recording.info, rows=rows, cols=cols, source=f"replay:{path}")
+        self._info = info.check_supported()
 
     def _stream_time(self, index: int) -> float:
         return float(self._t[index]) + self._pass * self._period_s

@@ -22,7 +22,12 @@ import numpy as np
 from wovenskin.errors import ConfigError
 from wovenskin.settings import from_dict
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
-from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ
+from wovenskin.skin.layout import (
+    DEFAULT_COLS,
+    DEFAULT_ROWS,
+    DEFAULT_SAMPLE_RATE_HZ,
+    check_supported,
+)
 from wovenskin.skin.source import DevicelessSource, held_back
 
 FAST_BATCH = 10
@@ -37,8 +42,8 @@ class IdleOptions:
 
     speed: float = 1.0
     rate: float = DEFAULT_SAMPLE_RATE_HZ
-    rows: int = 10
-    cols: int = 10
+    rows: int = DEFAULT_ROWS
+    cols: int = DEFAULT_COLS
     level: float = 10.0
     noise: float = 0.002
 
@@ -50,18 +55,15 @@ class IdleSkinSource(DevicelessSource):
         self,
         speed: float = 1.0,
         rate: float = DEFAULT_SAMPLE_RATE_HZ,
-        rows: int = 10,
-        cols: int = 10,
+        rows: int = DEFAULT_ROWS,
+        cols: int = DEFAULT_COLS,
         level: float = 10.0,
         noise: float = 0.002,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         if not (math.isfinite(speed) and speed >= 0):
             raise ConfigError(f"idle skin speed must be >= 0 (0 = as fast as polled), got {speed}")
-        if not (math.isfinite(rate) and 1.0 <= rate <= 10_000.0):
-            raise ConfigError(f"idle skin rate must be 1-10000 frames/s, got {rate}")
-        if not (1 <= rows <= 256 and 1 <= cols <= 256):
-            raise ConfigError(f"idle skin grid must be 1-256 x 1-256, got {rows} x {cols}")
+        check_supported(rows, cols, rate, "no skin (none)")
         if not (math.isfinite(level) and level > 0):
             raise ConfigError(f"idle skin level must be a positive reading in pF, got {level}")
         if not (math.isfinite(noise) and 0 < noise <= 0.01 * level):

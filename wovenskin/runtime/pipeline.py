@@ -7,6 +7,10 @@ guided recorder); :func:`open_live_pipeline` adds the recogniser and the
 and execution rules (robot sessions).  :meth:`LiveChain.record` records every raw frame
 to a ``.wsrec`` file.  Nothing is started: the caller starts the skin (or the session
 built on it).
+
+A skin whose spec leaves its grid unset (``sim``, ``serial:PORT``, ``none``) takes the
+model's grid (:data:`GRID_OPTION_KINDS`): the simulated skin is drawn with it, and a serial
+device is assumed to have it until its INFO says otherwise (``docs/skins.md``).
 """
 
 from __future__ import annotations
@@ -32,6 +36,8 @@ from wovenskin.skin.source import SkinSource
 from wovenskin.specs import Spec
 
 OBJECT_SOURCE_SPEC = "none:speed=0"
+GRID_OPTION_KINDS = ("sim", "serial", "none")
+"""The skin sources whose grid is a ``rows``/``cols`` option (the others bring their own)."""
 """The spec a chain built on a source object reports: read as fast as it delivers."""
 
 Provenance = Mapping[str, Any] | Callable[[SkinInfo], Mapping[str, Any]]
@@ -123,16 +129,28 @@ def open_live_pipeline(
 
     ``recognizer`` (default: the one of checkpoint directory ``model``, or the shipped
     model) sets the conditioning; ``settings`` default to the model's recommended execution
-    rules; ``on_message`` and ``defaults`` as for :func:`open_live_skin`.  Record with
+    rules; ``on_message`` and ``defaults`` as for :func:`open_live_skin` (a skin that leaves
+    its grid unset takes the model's: module docstring).  Record with
     :meth:`LiveChain.record` once everything the recording is for has been built."""
     recognizer = recognizer if recognizer is not None else load_recognizer(model)
     chain = open_live_skin(
         skin,
         conditioning=conditioning_for_model(recognizer),
         on_message=on_message,
-        defaults=defaults,
+        defaults={**_model_grid(skin, recognizer), **(defaults or {})},
     )
     chain.recognizer = recognizer
     settings = settings if settings is not None else pipeline_settings_for_model(recognizer)
     chain.pipeline = LivePipeline.for_live_skin(chain.live_skin, recognizer, settings)
     return chain
+
+
+def _model_grid(skin: str | Spec | SkinSource, recognizer: Any) -> dict[str, int]:
+    """``rows``/``cols`` spec options of the model's grid for a skin that takes them."""
+    meta = getattr(recognizer, "meta", None)
+    rows, cols = getattr(meta, "rows", None), getattr(meta, "cols", None)
+    if not isinstance(skin, str | Spec) or rows is None or cols is None:
+        return {}
+    if skin_spec(skin).kind not in GRID_OPTION_KINDS:
+        return {}
+    return {"rows": int(rows), "cols": int(cols)}

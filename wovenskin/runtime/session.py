@@ -119,7 +119,23 @@ def open_session(
     session.task = scene  # type: ignore[attr-defined]  # the session's scene, if any
     for source in inputs:
         session.add_input(source)
+    note = _unrecognised_note(action_mapping, session.state.class_names)
+    if note:  # a custom gesture mapped before a model learnt it: say so, once
+        session.state.messages.append(note)
+        if on_message is not None:
+            on_message(note)
     return session
+
+
+def _unrecognised_note(mapping: ActionMapping, class_names: tuple[str, ...]) -> str:
+    """One line naming the mapped gestures the model does not recognise ("" if none)."""
+    missing = [name for name in mapping.actions if class_names and name not in class_names]
+    if not missing:
+        return ""
+    return (
+        f"mapping: the model does not recognise {', '.join(map(repr, missing))}; adapt it on "
+        "recordings of them (docs/custom-gestures.md)"
+    )
 
 
 def task_for_session(task: str | Task | None, robot: str | Robot) -> Task | None:

@@ -75,7 +75,9 @@ class LiveSkin:
 
     Call :meth:`step` repeatedly (it waits at most ``timeout`` for new frames); it returns
     the conditioned frames that arrived with their stream times (or ``None`` while nothing
-    arrived or the skin is still calibrating) and updates :attr:`state`.
+    arrived or the skin is still calibrating) and updates :attr:`state`.  ``on_block``, when
+    set, also gets each such block: an observer beside whoever steps the skin (the
+    dashboard's guided recording beside its control session).
     """
 
     def __init__(
@@ -92,6 +94,7 @@ class LiveSkin:
         self._shape = (info.rows, info.cols)
         self.conditioner = LiveConditioner(self.config, info.rows, info.cols, on_warning=self._warn)
         self.recorder = recorder
+        self.on_block: Callable[[LiveBlock], None] | None = None  # sees every block stepped
         self.state = LiveState()
         self._rate = RateMeter()
         self._calibration_written = False
@@ -130,7 +133,10 @@ class LiveSkin:
             if self.recorder is not None:
                 self.recorder.tick()  # keep buffered frames durable through a stall
             return None
-        return self._consume(frames)
+        block = self._consume(frames)
+        if block is not None and self.on_block is not None:
+            self.on_block(block)
+        return block
 
     def _handle_event(self, event: SourceEvent) -> None:
         self.state.events.append((event.kind, event.message))

@@ -22,11 +22,13 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from wovenskin.custom_gestures import CustomGesture
 from wovenskin.errors import ConfigError
 from wovenskin.sim.live_options import DEFAULT_IDLE_S, LOOKAHEAD_S, SimOptions
 from wovenskin.sim.live_touches import (
@@ -95,6 +97,7 @@ class SimulatedSkinSource:
         self.max_batch = max(1, int(max_batch))
         self.layout = layout if layout is not None else SkinLayout()
         fs = float(sample_rate_hz)
+        self.layout.check_supported(fs, "sim")
         rng = np.random.default_rng(self.seed)
         # A typical skin by default: a demonstration should not land on the dullest skin
         # the simulator can draw (pass ``physics`` for any other).
@@ -217,9 +220,16 @@ class SimulatedSkinSource:
             thread.join(timeout=5.0)
 
     # -- ground truth and requests --------------------------------------------------------------
+    def define_gestures(self, custom: Mapping[str, CustomGesture]) -> None:
+        """Teach the person a user's custom gestures (performed from their stroke scripts),
+        so that :meth:`perform` accepts their names."""
+        with self._cond:
+            self._scheduler.custom.update(custom)
+
     def perform(self, name: str) -> None:
-        """Queue ``name`` (a class name, or ``invalid:KIND``) as the person's next event."""
-        parse_request(name)
+        """Queue ``name`` (a class name, a custom gesture defined with
+        :meth:`define_gestures`, or ``invalid:KIND``) as the person's next event."""
+        parse_request(name, self._scheduler.custom)
         with self._cond:
             self._requests.append(name)
             self._cond.notify_all()

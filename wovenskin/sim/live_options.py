@@ -15,7 +15,13 @@ from typing import Any
 from wovenskin.errors import ConfigError
 from wovenskin.settings import from_dict
 from wovenskin.sim.stream import parse_request
-from wovenskin.skin.layout import DEFAULT_COL_PITCH_MM, DEFAULT_ROW_PITCH_MM, SkinLayout
+from wovenskin.skin.layout import (
+    DEFAULT_COL_PITCH_MM,
+    DEFAULT_COLS,
+    DEFAULT_ROW_PITCH_MM,
+    DEFAULT_ROWS,
+    SkinLayout,
+)
 
 LOOKAHEAD_S = 0.25  # how far ahead of the wall clock frames are rendered (default)
 DEFAULT_IDLE_S = (0.3, 1.5)  # idle gap between events, seconds (low, high)
@@ -31,8 +37,8 @@ class SimOptions:
 
     seed: int | None = None
     speed: float = 1.0
-    rows: int = 10
-    cols: int = 10
+    rows: int = DEFAULT_ROWS
+    cols: int = DEFAULT_COLS
     row_pitch: float = DEFAULT_ROW_PITCH_MM
     col_pitch: float = DEFAULT_COL_PITCH_MM
     gestures: str = ""

@@ -1,7 +1,8 @@
 """Labelled simulated streams: a simulated person using a simulated skin for a while.
 
 Owns :class:`EventScheduler` (what the person does next: the gestures cycled evenly in a
-shuffled order, invalid touches at a given rate, idle gaps, and explicit requests) and
+shuffled order, invalid touches at a given rate, idle gaps, and explicit requests, a
+user's custom gestures among them where given) and
 :func:`simulate_stream`, which renders a whole :class:`~wovenskin.recording.formats.LabelledStream`:
 at least one contact-free second, then gestures, invalid touches and idle gaps, labelled
 with each event's first contact and last lift-off.  The same seed gives identical arrays.
@@ -9,13 +10,14 @@ with each event's first contact and last lift-off.  The same seed gives identica
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from wovenskin.custom_gestures import CustomGesture
 from wovenskin.errors import ConfigError
-from wovenskin.gestures import GESTURE_NAMES, INVALID, check_name
+from wovenskin.gestures import GESTURE_NAMES, INVALID, check_name, known_classes
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.sim.invalid import INVALID_KINDS
 from wovenskin.sim.motion import LEAD_S, Performance
@@ -29,10 +31,13 @@ INITIAL_IDLE_S = (1.2, 1.7)
 """Contact-free time before the first event's first contact (>= 1 s, plus hover)."""
 
 
-def parse_request(request: str) -> tuple[str, str | None]:
-    """``"swipe_up"`` -> ``("swipe_up", None)``; ``"invalid:palm"`` -> ``("invalid", "palm")``."""
+def parse_request(
+    request: str, custom: Mapping[str, CustomGesture] | None = None
+) -> tuple[str, str | None]:
+    """``"swipe_up"`` -> ``("swipe_up", None)``; ``"invalid:palm"`` -> ``("invalid", "palm")``;
+    the names of ``custom`` gestures are known too."""
     name, _, kind = request.strip().partition(":")
-    check_name(name)
+    check_name(name, known_classes(custom or ()))
     if kind and name != INVALID:
         raise ConfigError(f"only 'invalid' takes a sub-kind, got {request!r}")
     if kind and kind not in INVALID_KINDS:
@@ -52,10 +57,13 @@ class EventScheduler:
         invalid_fraction: float = 0.25,
         idle_s: tuple[float, float] = (0.3, 1.5),
         sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+        custom: Mapping[str, CustomGesture] | None = None,
     ) -> None:
+        """``custom``: a user's gestures the person can perform (from their strokes)."""
+        self.custom: dict[str, CustomGesture] = dict(custom or {})
         gestures = list(GESTURE_NAMES if gestures is None else gestures)
         for g in gestures:
-            parse_request(g)
+            parse_request(g, self.custom)
         if not 0.0 <= invalid_fraction <= 1.0:
             raise ConfigError(f"invalid_fraction must lie in [0, 1], got {invalid_fraction}")
         low, high = (float(v) for v in idle_s)
@@ -86,7 +94,9 @@ class EventScheduler:
 
     def next_performance(self, request: str | None = None) -> Performance:
         """Perform ``request`` (a class name or ``invalid:KIND``) or the next scheduled event."""
-        name, kind = parse_request(request if request is not None else self.next_request())
+        name, kind = parse_request(
+            request if request is not None else self.next_request(), self.custom
+        )
         return perform(
             name,
             self.person,
@@ -94,6 +104,7 @@ class EventScheduler:
             self.layout,
             invalid_kind=kind,
             sample_rate_hz=self.sample_rate_hz,
+            custom=self.custom,
         )
 
 
@@ -125,11 +136,13 @@ def simulate_stream(
     invalid_fraction: float = 0.25,
     idle_s: tuple[float, float] = (0.3, 1.5),
     sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+    custom: Mapping[str, CustomGesture] | None = None,
 ) -> LabelledStream:
     """A labelled stream of ``seconds`` of a simulated person using a simulated skin.
 
     ``physics`` and ``person`` are drawn from ``seed`` when ``None``.  Events that would
     not end before the stream does are left out (the stream ends contact-free).
+    ``custom``: a user's gestures that ``gestures`` may name (performed from their strokes).
     """
     if not np.isfinite(seconds) or seconds <= 0:
         raise ConfigError(f"stream length must be positive, got {seconds}")
@@ -141,7 +154,7 @@ def simulate_stream(
     person = person if person is not None else Person.sample(rng)
     model = SkinModel(physics, layout, seed=int(rng.integers(2**31)), sample_rate_hz=sample_rate_hz)
     scheduler = EventScheduler(
-        rng, person, layout, gestures, invalid_fraction, idle_s, sample_rate_hz
+        rng, person, layout, gestures, invalid_fraction, idle_s, sample_rate_hz, custom
     )
     fs = sample_rate_hz
     total = int(round(seconds * fs))
@@ -185,6 +198,8 @@ def simulate_stream(
         "invalid_kinds": [e.invalid_kind for e in events],
         "events": details,
     }
+    if custom:
+        metadata["custom_gestures"] = {name: g.to_dict() for name, g in custom.items()}
     return LabelledStream(
         frames=frames,
         t=np.arange(total, dtype=np.float64) / fs,

@@ -11,15 +11,23 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
+from wovenskin.skin.layout import (
+    DEFAULT_COL_PITCH_MM,
+    DEFAULT_COLS,
+    DEFAULT_ROW_PITCH_MM,
+    DEFAULT_ROWS,
+    DEFAULT_SAMPLE_RATE_HZ,
+    SkinLayout,
+    check_supported,
+)
 
 
 @dataclass(frozen=True)
 class SkinInfo:
     """What a source knows about the skin behind it (the device INFO message)."""
 
-    rows: int = 10
-    cols: int = 10
+    rows: int = DEFAULT_ROWS
+    cols: int = DEFAULT_COLS
     sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ
     firmware: str = ""
     protocol_version: int = 1
@@ -27,12 +35,19 @@ class SkinInfo:
     channel_order: str = "row-major"
     units: str = "pF"
     source: str = ""
-    row_pitch_mm: float = 14.0
-    col_pitch_mm: float = 10.0
+    row_pitch_mm: float = DEFAULT_ROW_PITCH_MM
+    col_pitch_mm: float = DEFAULT_COL_PITCH_MM
 
     @property
     def layout(self) -> SkinLayout:
         return SkinLayout(self.rows, self.cols, self.row_pitch_mm, self.col_pitch_mm)
+
+    def check_supported(self, where: str = "") -> SkinInfo:
+        """This info, after :func:`~wovenskin.skin.layout.check_supported` of its grid and
+        rate: one :class:`~wovenskin.skin.layout.UnsupportedSkinError` line naming ``where``
+        (default: the source) otherwise."""
+        check_supported(self.rows, self.cols, self.sample_rate_hz, where or self.source)
+        return self
 
     def to_dict(self) -> dict:
         return asdict(self)

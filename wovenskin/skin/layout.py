@@ -9,10 +9,18 @@ sensing area, so "up" is ``-y``.
 Devices may stream their channels in another order (column-major, mirrored
 electrodes).  :class:`ChannelOrder` describes that order and is the one place where
 wovenskin flips or transposes channel data; no other module may do it.
+
+Any grid of :data:`MIN_GRID_SIDE`-:data:`MAX_GRID_SIDE` rows and columns streaming at
+:data:`MIN_SAMPLE_RATE_HZ`-:data:`MAX_SAMPLE_RATE_HZ` can be conditioned and recognised
+live (``docs/skins.md`` says why these bounds); :func:`check_supported` is the one check of
+that range, which every live source (simulated, serial, replayed, idle) and the pipeline
+run on a file pass through, so anything outside it is one :class:`UnsupportedSkinError`
+line.  Files and layouts themselves may hold any grid (``info`` and ``convert`` read them).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +33,58 @@ DEFAULT_COLS = 10
 DEFAULT_ROW_PITCH_MM = 14.0
 DEFAULT_COL_PITCH_MM = 10.0
 DEFAULT_SAMPLE_RATE_HZ = 200.0
+
+MIN_GRID_SIDE = 2
+"""Fewest rows (and columns) of a usable skin: a single line of channels has no second
+axis, so half the gestures (a swipe across it, a circle) cannot be told apart."""
+MAX_GRID_SIDE = 32
+"""Most rows (and columns): the shipped architecture recognising a 32x32 grid takes 25 % of
+one core at 200 Hz, a 64x64 one more than the whole core (docs/skins.md)."""
+MIN_SAMPLE_RATE_HZ = 25.0
+"""Slowest usable rate: at 22 Hz and below the default 0.5 s calibration holds fewer frames
+than the smoothing window + 10 that calibration needs (``ConditioningConfig`` refuses it)."""
+MAX_SAMPLE_RATE_HZ = 2000.0
+"""Fastest usable rate: conditioning a 32x32 grid at 2 kHz keeps 4x ahead of real time on
+one core, a 64x64 one falls behind (docs/skins.md)."""
+
+
+class UnsupportedSkinError(ConfigError):
+    """A grid size or sample rate outside the range wovenskin can condition and recognise."""
+
+
+def supported_range() -> str:
+    """The supported range in words, e.g. ``"2-32 rows and columns at 25-2000 Hz"``."""
+    return (
+        f"{MIN_GRID_SIDE}-{MAX_GRID_SIDE} rows and columns at "
+        f"{MIN_SAMPLE_RATE_HZ:g}-{MAX_SAMPLE_RATE_HZ:g} Hz"
+    )
+
+
+def check_supported(
+    rows: object, cols: object, sample_rate_hz: object = DEFAULT_SAMPLE_RATE_HZ, where: str = ""
+) -> None:
+    """Raise one :class:`UnsupportedSkinError` line (prefixed ``where: ``) unless a
+    ``rows x cols`` grid at ``sample_rate_hz`` is in the supported range (module doc)."""
+    problems = []
+
+    def side_ok(n: object) -> bool:
+        return isinstance(n, int | np.integer) and MIN_GRID_SIDE <= n <= MAX_GRID_SIDE
+
+    if not (side_ok(rows) and side_ok(cols)):
+        problems.append(f"a {rows}x{cols} grid")
+    try:
+        rate = float(sample_rate_hz)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        rate = math.nan
+    if not (math.isfinite(rate) and MIN_SAMPLE_RATE_HZ <= rate <= MAX_SAMPLE_RATE_HZ):
+        shown = repr(sample_rate_hz) if math.isnan(rate) else f"{rate:g} Hz"
+        problems.append(f"a sample rate of {shown}")
+    if problems:
+        prefix = f"{where}: " if where else ""
+        raise UnsupportedSkinError(
+            f"{prefix}{' and '.join(problems)} cannot be used: wovenskin supports skins of "
+            f"{supported_range()} (docs/skins.md)"
+        )
 
 
 @dataclass(frozen=True)
@@ -85,6 +145,13 @@ class SkinLayout:
             raise ValueError(
                 f"expected frames of shape (..., {self.rows}, {self.cols}), got {frames.shape}"
             )
+
+    def check_supported(
+        self, sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ, where: str = ""
+    ) -> SkinLayout:
+        """This layout, after :func:`check_supported` of its grid at ``sample_rate_hz``."""
+        check_supported(self.rows, self.cols, sample_rate_hz, where)
+        return self
 
     def to_dict(self) -> dict:
         return {

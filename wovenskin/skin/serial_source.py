@@ -11,6 +11,9 @@ drains.  The thread never dies on stream problems; it counts them in
 - sequence gaps: dropped frames; the sequence going backwards (or the device clock):
   a device reset (``reset`` event), not a drop;
 - no good frame for ``stall_ms``: ``stalled`` (then ``resumed``);
+- an INFO declaring a grid or rate outside the supported range
+  (:func:`~wovenskin.skin.layout.check_supported`): one ``error`` event with that line; the
+  source keeps its previous layout, so the device's frames count as bad (``shape``);
 - serial errors or the port vanishing: ``disconnected``, then reconnection with
   exponential backoff (0.05 s doubling to 2 s), ``connected``, GET_INFO and START again.
 
@@ -30,7 +33,13 @@ import serial
 
 from wovenskin.errors import ConfigError, DeviceError
 from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
-from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, ROW_MAJOR, ChannelOrder, SkinLayout
+from wovenskin.skin.layout import (
+    DEFAULT_SAMPLE_RATE_HZ,
+    ROW_MAJOR,
+    ChannelOrder,
+    SkinLayout,
+    UnsupportedSkinError,
+)
 from wovenskin.skin.messages import (
     AckMessage,
     AckStatus,
@@ -106,7 +115,8 @@ class SerialSkinSource:
             row_pitch_mm=self._layout.row_pitch_mm,
             col_pitch_mm=self._layout.col_pitch_mm,
             protocol_version=1 if fmt == "binary" else 0,
-        )
+        ).check_supported()
+        self._refused_info: SkinInfo | None = None  # the last unsupported INFO reported
         self._binary = StreamDecoder()
         self._text = TextLineDecoder(self._layout, order, text_separator or None, skip_columns)
 
@@ -441,11 +451,19 @@ class SerialSkinSource:
                 self._stats.count_bad("direction")
 
     def _on_info(self, msg: InfoMessage, now: float) -> None:
-        self._device_info = msg
         self._info_since_connect = True
+        info = msg.to_skin_info(source=self._source_name)
+        try:
+            info.check_supported()
+        except UnsupportedSkinError as exc:
+            if info != self._refused_info:  # once per INFO, not once per GET_INFO answer
+                self._refused_info = info
+                self._stats.last_error = "unsupported"
+                self._emit(SourceEvent("error", str(exc), now, info))
+            return
+        self._device_info = msg
         self._layout = msg.layout
         self._order = msg.channel_order
-        info = msg.to_skin_info(source=self._source_name)
         if info != self._info:
             self._info = info
             self._emit(

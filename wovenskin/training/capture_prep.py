@@ -35,14 +35,18 @@ if TYPE_CHECKING:  # the package of data sets imports this module
 
 
 def prepare_capture(
-    frames: np.ndarray, normalisation: CaptureNormalisation, frame_step: int
+    frames: np.ndarray,
+    normalisation: CaptureNormalisation,
+    frame_step: int,
+    group_spread: float | None = None,
 ) -> np.ndarray:
     """One capture's valid frames ``(T, R, C)`` as model frames ``(T // frame_step, R, C)``.
 
-    Normalised (``normalisation`` must be resolved), then every ``frame_step`` frames
-    averaged; a capture shorter than ``frame_step`` becomes one frame, its mean.
+    Normalised (``normalisation`` must be resolved; ``group_spread`` for a per-group one),
+    then every ``frame_step`` frames averaged; a capture shorter than ``frame_step``
+    becomes one frame, its mean.
     """
-    x = normalisation.apply(frames)
+    x = normalisation.apply(frames, group_spread)
     if frame_step == 1:
         return x
     if len(x) < frame_step:
@@ -57,11 +61,19 @@ def prepare_captures(
     frame_step: int,
     indices: Sequence[int] | np.ndarray | None = None,
 ) -> dict[int, np.ndarray]:
-    """:func:`prepare_capture` of the captures at ``indices`` (all by default), by index."""
+    """:func:`prepare_capture` of the captures at ``indices`` (all by default), by index.
+
+    A per-group normalisation takes each group's spread from all of its captures in
+    ``captures`` (not only those at ``indices``)."""
     chosen = range(len(captures.lengths)) if indices is None else indices
+    spreads = normalisation.group_spreads(captures) if normalisation.per_group else {}
+    groups = np.asarray(captures.groups).astype(str)
     return {
         int(i): prepare_capture(
-            captures.frames[i, : captures.lengths[i]], normalisation, frame_step
+            captures.frames[i, : captures.lengths[i]],
+            normalisation,
+            frame_step,
+            spreads.get(str(groups[i])),
         )
         for i in chosen
     }

@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from annotated_types import Ge, Gt, Le, Lt
 
@@ -25,6 +25,8 @@ from wovenskin.training.datasets.normalisation import CaptureNormalisation
 Positive = Annotated[int, Gt(0)]
 PositiveFloat = Annotated[float, Gt(0)]
 NonNegative = Annotated[float, Ge(0)]
+DeviceName = Literal["auto", "cpu", "cuda"]
+AmpName = Literal["auto", "off", "bf16", "fp16"]
 Factor = Annotated[float, Ge(1)]
 """A random factor's range: values in ``[1 / f, f]``, log-uniform; 1 is off."""
 
@@ -74,6 +76,8 @@ class CaptureConfig:
     shift: Annotated[int, Ge(0)] = 0
     taxel_gain: NonNegative = 0.0
     mix: Annotated[float, Ge(0), Le(1)] = 0.0
+    self_training_epochs: Annotated[int, Ge(0)] = 0
+    self_training_fraction: Annotated[float, Gt(0), Le(1)] = 0.5
 
     def window_seconds(self, sample_rate_hz: float) -> float:
         return self.window_frames * self.frame_step / sample_rate_hz
@@ -104,6 +108,12 @@ class TrainConfig:
     warmup_epochs: NonNegative = 1.0
 
     # -- the run
+    device: DeviceName = "auto"
+    """auto: CUDA when torch sees a GPU, else the CPU; cpu; cuda (refused without one).
+    Not part of what a resumed run must repeat (:mod:`~wovenskin.training.device`)."""
+    amp: AmpName = "auto"
+    """Mixed precision on CUDA: auto (bf16 where supported, else fp16), bf16, fp16, off.
+    The CPU always trains in float32 (auto is off there; bf16/fp16 are refused)."""
     threads: Positive = 1
     resume: bool = False
     time_budget_s: NonNegative | None = None

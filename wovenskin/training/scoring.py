@@ -16,6 +16,7 @@ import torch
 from torch import nn
 
 from wovenskin.errors import DataError
+from wovenskin.training.device import module_device
 from wovenskin.training.metrics import ClassificationMetrics, classification_metrics
 
 EVAL_BATCH = 512
@@ -50,18 +51,21 @@ def predict_scores(
     """``(n, K)`` scores of ``windows[indices]`` (all windows by default), in batches.
 
     Scores are logits for a torch model and probabilities for a recogniser; both rank
-    classes the same way.
+    classes the same way.  A torch model is run on its own device (float32 scores back
+    on the CPU).
     """
     idx = np.arange(len(windows)) if indices is None else np.asarray(indices, dtype=np.int64)
     parts: list[np.ndarray] = []
     if isinstance(model_or_recognizer, nn.Module):
         model = model_or_recognizer
+        device = module_device(model)
         was_training = model.training
         model.eval()
         try:
             with torch.inference_mode():
                 for chunk in chunks(idx, batch_size):
-                    parts.append(model(torch.from_numpy(float32_batch(windows, chunk))).numpy())
+                    x = torch.from_numpy(float32_batch(windows, chunk)).to(device)
+                    parts.append(model(x).float().cpu().numpy())
         finally:
             model.train(was_training)
         n_classes = int(model.n_classes)

@@ -125,13 +125,24 @@ def sample_stream_windows(
     invalid_label: int,
     settings: WindowSettings,
     rng: np.random.Generator,
+    allowed: np.ndarray | None = None,
 ) -> WindowBatch:
-    """``n_gesture`` gesture and ``n_invalid`` invalid plain windows (see the module doc)."""
+    """``n_gesture`` gesture and ``n_invalid`` invalid plain windows (see the module doc).
+
+    ``allowed`` ``(T,)`` bool, if given, says which frames may end a drawn window (e.g. only
+    windows inside the trials ``wovenskin adapt`` trains on, none over its held-out ones).
+    """
     w = settings.window_frames
     n_frames = len(signal)
     ends, labels, _, still = window_labels(
         events, span_start, span_stop, invalid_label, settings, n_frames
     )
+    if allowed is not None:
+        allowed = np.asarray(allowed, dtype=bool)
+        if allowed.shape != (n_frames,):
+            raise ValueError(f"allowed must be ({n_frames},) bool, got shape {allowed.shape}")
+        keep = allowed[ends]
+        ends, labels, still = ends[keep], labels[keep], still[keep]
     gesture = ~still
     parts_ends, parts_labels, parts_sources = [], [], []
     if n_gesture:
@@ -148,8 +159,9 @@ def sample_stream_windows(
             parts_sources.append(np.full(count, SOURCE_CODES["gesture_plain"]))
     if n_invalid:
         inv_ends, inv_sources = _invalid_ends(
-            touched, events, ends[still], invalid_label, settings, rng, n_invalid, n_frames
-        )
+            touched, events, ends[still], invalid_label, settings, rng, n_invalid, n_frames,
+            allowed,
+        )  # fmt: skip
         parts_ends.append(inv_ends)
         parts_labels.append(np.full(inv_ends.size, invalid_label))
         parts_sources.append(inv_sources)
@@ -173,8 +185,9 @@ def _invalid_ends(
     rng: np.random.Generator,
     n: int,
     n_frames: int,
+    allowed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Last frames of ``n`` invalid windows and their source codes."""
+    """Last frames of ``n`` invalid windows and their source codes (ends in ``allowed``)."""
     w = settings.window_frames
     spans = []
     for e in np.flatnonzero((events.labels == invalid_label) & (events.stop > events.start)):
@@ -186,6 +199,8 @@ def _invalid_ends(
     canvases = canvas_starts(quiet_frames(touched, events, settings.quiet_margin_frames), w)
     idle_ends = canvases + w - 1
     pools = (event_ends, idle_ends, still_ends)
+    if allowed is not None:
+        pools = tuple(p[allowed[p]] for p in pools)
     weights = np.asarray(settings.invalid_mix) * np.array([p.size > 0 for p in pools])
     if weights.sum() <= 0:
         raise ValueError(

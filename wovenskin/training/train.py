@@ -23,21 +23,25 @@ the description of the training data). It uses
   schedule, best weights, history), so ``resume=True`` continues an interrupted run and
   ends with the same weights as an uninterrupted one;
 - the best model saved as a checkpoint (:mod:`~wovenskin.training.checkpoint`) whenever
-  it improves, and exported to ONNX, with its validation metrics, at the end.
+  it improves, and exported to ONNX, with its validation metrics, at the end;
+- the hardware at hand: the CPU or a CUDA GPU with mixed precision
+  (:mod:`~wovenskin.training.device`; checkpoints are always saved as CPU weights), and
+  several processes under torchrun with DistributedDataParallel
+  (:mod:`~wovenskin.training.distributed`: the training windows sharded per rank, rank 0
+  writing every file).
 
 Its settings are one :class:`~wovenskin.training.config.TrainConfig`.  Scoring lives in
 :mod:`~.scoring`, the checkpoint description in :mod:`~.run_meta`, the history files in
-:mod:`~.history`.
+:mod:`~.history`, the resume state in :mod:`~.train_state`.
 """
 
 from __future__ import annotations
 
 import hashlib
-import io
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -46,17 +50,20 @@ import torch
 from torch import nn
 
 from wovenskin.errors import ConfigError, DataError
-from wovenskin.io import atomic_write_bytes, to_jsonable
+from wovenskin.io import to_jsonable
 from wovenskin.recognition.checkpoint_meta import CheckpointMeta
+from wovenskin.training import distributed
 from wovenskin.training.checkpoint import load_checkpoint, save_checkpoint
 from wovenskin.training.config import TrainConfig
+from wovenskin.training.device import Precision, cpu_copy, resolve_device
+from wovenskin.training.distributed import Ranks
 from wovenskin.training.history import EpochRecord, TrainEvent, write_history
 from wovenskin.training.metrics import ClassificationMetrics, classification_metrics
 from wovenskin.training.models import build_model, resolve_hparams
 from wovenskin.training.run_meta import checkpoint_meta_for
-from wovenskin.training.scoring import EVAL_BATCH, chunks, evaluate, float32_batch, predict_scores
+from wovenskin.training.scoring import EVAL_BATCH, chunks, float32_batch, predict_scores
+from wovenskin.training.train_state import STATE_FILE, RunProgress, resume_state, save_state
 
-STATE_FILE = "training_state.pt"
 GAIN_RANGE = (0.25, 4.0)
 """Range of the random per-window gain of augmentation (log-uniform).  The models divide
 each window by its peak, so the gain only matters near the peak floor and against the
@@ -67,6 +74,8 @@ SCALE_SAMPLE = 4096
 """Training windows sampled to fit the input scale."""
 MIN_LR_FRACTION = 0.02
 """The cosine schedule decays the learning rate to this fraction of its peak."""
+RANK_SEED_STRIDE = 7919
+"""Dropout seeds of ranks differ by this (rank 0 keeps the one-process seed)."""
 
 
 @dataclass
@@ -157,73 +166,6 @@ class _TorchGlobals:
         torch.use_deterministic_algorithms(self._deterministic, warn_only=self._warn_only)
 
 
-@dataclass
-class _Progress:
-    """Where a run stands: the epochs done, the best one so far and why it stopped."""
-
-    epoch: int = 0
-    history: list[EpochRecord] = field(default_factory=list)
-    best_epoch: int = 0
-    best_val_accuracy: float = -1.0
-    best_val_loss: float = math.inf
-    best_state: dict[str, torch.Tensor] | None = None
-    epochs_since_best: int = 0
-    stop_reason: str | None = None
-
-    def add(self, record: EpochRecord, model: nn.Module, settings: TrainConfig) -> bool:
-        """Book an epoch; True when it is the best so far (ties go to the lower loss)."""
-        self.epoch = record.epoch
-        self.history.append(record)
-        improved = record.val_accuracy > self.best_val_accuracy or (
-            record.val_accuracy == self.best_val_accuracy and record.val_loss < self.best_val_loss
-        )
-        if improved:
-            self.best_epoch = record.epoch
-            self.best_val_accuracy = record.val_accuracy
-            self.best_val_loss = record.val_loss
-            self.best_state = {k: v.detach().clone() for k, v in model.state_dict().items()}
-            self.epochs_since_best = 0
-        else:
-            self.epochs_since_best += 1
-        if record.epoch >= settings.epochs:
-            self.stop_reason = "completed"
-        elif self.epochs_since_best >= settings.patience:
-            self.stop_reason = "early_stopping"
-        return improved
-
-    def to_state(self) -> dict[str, Any]:
-        d = {k: v for k, v in self.__dict__.items() if k != "history"}
-        d["history"] = [asdict(r) for r in self.history]
-        return d
-
-    @classmethod
-    def from_state(cls, d: Mapping[str, Any]) -> _Progress:
-        values = {k: d[k] for k in cls.__dataclass_fields__ if k != "history"}
-        return cls(history=[EpochRecord(**r) for r in d["history"]], **values)
-
-
-def _save_state(path: Path, state: dict[str, Any]) -> None:
-    buffer = io.BytesIO()
-    torch.save(state, buffer)
-    atomic_write_bytes(path, buffer.getvalue())
-
-
-def _load_state(path: Path, fingerprint: dict[str, Any]) -> dict[str, Any]:
-    try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
-        saved = state["fingerprint"]
-    except Exception as exc:
-        raise ConfigError(f"cannot resume: {path} is unreadable ({type(exc).__name__})") from None
-    differing = [k for k in fingerprint if saved.get(k) != fingerprint[k]]
-    if differing:
-        key = differing[0]
-        raise ConfigError(
-            f"cannot resume from {path}: it was trained with {key}={saved.get(key)!r}, "
-            f"this run asks for {fingerprint[key]!r}"
-        )
-    return state
-
-
 def train_model(
     windows: Any,
     labels: np.ndarray,
@@ -247,6 +189,12 @@ def train_model(
     it (at least one epoch always runs); such a run can be resumed. ``progress`` gets a
     :class:`TrainEvent` after every batch and every epoch; an exception it raises stops
     training with the last completed epoch saved.
+
+    ``config.device`` and ``config.amp`` choose where and in what precision it computes
+    (:mod:`~.device`).  Called in every process of an initialised process group (torchrun,
+    :func:`~.distributed.session`) it trains one DistributedDataParallel model on shards of
+    the training windows (:mod:`~.distributed`); only rank 0 writes files and gets
+    ``progress`` events, and every rank returns the same result.
     """
     started = time.monotonic()
     settings = (config or TrainConfig()).checked()
@@ -269,81 +217,102 @@ def train_model(
         **settings.optimisation(),
         "init_from": settings.init_from,
     }
+    ranks = distributed.current()
+    precision = Precision.of(resolve_device(settings.device, ranks.local_rank), settings.amp)
+    progress = progress if ranks.is_main else None
     training = {
         **settings.optimisation(),
         "n_train": int(train_idx.size),
         "n_val": int(val_idx.size),
         **({} if settings.init_from is None else {"init_from": str(settings.init_from)}),
+        **_hardware_record(precision, ranks),
     }
     checkpoint_meta = checkpoint_meta_for(
         model_name, full_hparams, class_names, (window, rows, cols), meta, training
     )
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if ranks.is_main:
+        out_dir.mkdir(parents=True, exist_ok=True)
     state_path = out_dir / STATE_FILE
-    steps_per_epoch = math.ceil(train_idx.size / settings.batch_size)
+    steps_per_epoch = distributed.steps_per_epoch(train_idx.size, settings.batch_size, ranks)
     total_steps = settings.epochs * steps_per_epoch
     warmup_steps = max(1, min(total_steps // 2, round(settings.warmup_epochs * steps_per_epoch)))
 
     with _TorchGlobals(settings.threads):
         torch.manual_seed(settings.seed)
-        model = build_model(model_name, rows, cols, window, len(class_names), **full_hparams)
+        net = build_model(model_name, rows, cols, window, len(class_names), **full_hparams)
+        net.to(precision.device)
         optimizer = torch.optim.AdamW(
-            model.parameters(), lr=settings.lr, weight_decay=settings.weight_decay
+            net.parameters(), lr=settings.lr, weight_decay=settings.weight_decay
         )
         scheduler = torch.optim.lr_scheduler.LambdaLR(
             optimizer, lambda step: _lr_factor(step, warmup_steps, total_steps)
         )
-        run, resumed_from = _Progress(), None
-        if settings.resume and state_path.is_file():
-            state = _load_state(state_path, fingerprint)
-            model.load_state_dict(state["model"])
+        run, resumed_from = RunProgress(), None
+        state = resume_state(settings, state_path, fingerprint, ranks)
+        if state is not None:
+            net.load_state_dict(state["model"])
             optimizer.load_state_dict(state["optimizer"])
             scheduler.load_state_dict(state["scheduler"])
-            run = _Progress.from_state(state["progress"])
+            if precision.scaler is not None and "scaler" in state:
+                precision.scaler.load_state_dict(state["scaler"])
+            run = RunProgress.from_state(state["progress"])
             resumed_from = run.epoch + 1
         elif settings.init_from is not None:
-            model.load_state_dict(
-                _initial_weights(settings.init_from, model_name, full_hparams, class_names, windows)
+            start = settings.init_from
+            net.load_state_dict(
+                distributed.from_main(
+                    ranks,
+                    lambda: _initial_weights(start, model_name, full_hparams, class_names, windows),
+                )
             )
         else:
-            model.set_input_scale(fit_input_scale(windows, train_idx, settings.seed))
+            net.set_input_scale(fit_input_scale(windows, train_idx, settings.seed))
+        model = distributed.wrap(net, ranks)
 
         loss_fn = nn.CrossEntropyLoss(label_smoothing=settings.label_smoothing)
         last_epoch_s = 0.0
         while run.stop_reason is None:
             elapsed = time.monotonic() - started
-            if (
+            over_budget = bool(
                 settings.time_budget_s is not None
                 and last_epoch_s
                 and elapsed + last_epoch_s > settings.time_budget_s
-            ):
+            )
+            if distributed.main_value(ranks, over_budget):
                 break
             epoch = run.epoch + 1
             epoch_started = time.monotonic()
             train_loss, train_acc = _train_epoch(
                 model, optimizer, scheduler, loss_fn, windows, labels, train_idx, settings,
-                epoch, progress,
+                epoch, progress, precision, ranks,
             )  # fmt: skip
-            val_loss, val_metrics = _validate(model, windows, labels, val_idx, class_names)
+            val_loss, val_metrics = _validate(net, windows, labels, val_idx, class_names, ranks)
             last_epoch_s = time.monotonic() - epoch_started
             record = EpochRecord(
                 epoch, train_loss, train_acc, val_loss, val_metrics.accuracy,
                 val_metrics.macro_f1, float(optimizer.param_groups[0]["lr"]), last_epoch_s,
             )  # fmt: skip
-            if run.add(record, model, settings):
-                save_checkpoint(out_dir, model, checkpoint_meta, export_onnx=False)
-            _save_state(
-                state_path,
-                {
-                    "fingerprint": fingerprint,
-                    "model": model.state_dict(),
-                    "optimizer": optimizer.state_dict(),
-                    "scheduler": scheduler.state_dict(),
-                    "progress": run.to_state(),
-                },
-            )
-            write_history(out_dir, run.history, model_name)
+            record = distributed.main_value(ranks, record)  # one record, one stop decision
+            if run.add(record, net, settings) and ranks.is_main:
+                save_checkpoint(out_dir, cpu_copy(net), checkpoint_meta, export_onnx=False)
+            if ranks.is_main:
+                save_state(
+                    state_path,
+                    {
+                        "fingerprint": fingerprint,
+                        "model": net.state_dict(),
+                        "optimizer": optimizer.state_dict(),
+                        "scheduler": scheduler.state_dict(),
+                        "progress": run.to_state(),
+                        **(
+                            {}
+                            if precision.scaler is None
+                            else {"scaler": precision.scaler.state_dict()}
+                        ),
+                    },
+                )
+                write_history(out_dir, run.history, model_name)
             if progress is not None:
                 batches = steps_per_epoch
                 progress(
@@ -354,9 +323,12 @@ def train_model(
 
         if run.best_state is None:
             raise ConfigError(f"{state_path} holds no trained epoch")
-        model.load_state_dict(run.best_state)
+        net.load_state_dict(run.best_state)
         stop_reason = run.stop_reason or "time_budget"
-        validation = evaluate(model, windows, labels, class_names, indices=val_idx)
+        final_logits = _val_logits(net, windows, val_idx, ranks)
+        validation = classification_metrics(
+            labels[val_idx], final_logits.argmax(axis=1), class_names
+        )
         final_meta = checkpoint_meta.with_updates(
             metrics={
                 "best_epoch": run.best_epoch,
@@ -368,7 +340,9 @@ def train_model(
                 "validation": validation.to_dict(),
             }
         )
-        final_meta = save_checkpoint(out_dir, model, final_meta, export_onnx=True)
+        if ranks.is_main:
+            final_meta = save_checkpoint(out_dir, cpu_copy(net), final_meta, export_onnx=True)
+        distributed.barrier(ranks)  # returned anywhere: the checkpoint is written
 
     return TrainResult(
         checkpoint_dir=out_dir,
@@ -383,6 +357,19 @@ def train_model(
         resumed_from_epoch=resumed_from,
         meta=final_meta,
     )
+
+
+def _hardware_record(precision: Precision, ranks: Ranks) -> dict[str, Any]:
+    """What the checkpoint records of the hardware: nothing for one CPU process."""
+    if precision.device.type == "cpu" and not ranks.active:
+        return {}
+    return {
+        "hardware": {
+            "device": precision.device.type,
+            "amp": precision.name,
+            "processes": ranks.world_size,
+        }
+    }
 
 
 def _initial_weights(
@@ -439,16 +426,23 @@ def _train_epoch(
     settings: TrainConfig,
     epoch: int,
     progress: Callable[[TrainEvent], None] | None,
+    precision: Precision,
+    ranks: Ranks,
 ) -> tuple[float, float]:
-    """One pass over the training windows; returns mean loss and accuracy.
+    """One pass over the training windows (this rank's share); returns the mean loss and
+    accuracy over all ranks.
 
-    Batch order, augmentation and dropout derive from ``(seed, epoch)`` alone, so an epoch
-    replays identically after a resume.
+    Batch order, augmentation and dropout derive from ``(seed, epoch, rank)`` alone, so an
+    epoch replays identically after a resume.
     """
     rng = np.random.default_rng([settings.seed, epoch])
-    torch.manual_seed(settings.seed * 1_000_003 + epoch)
-    batches = chunks(rng.permutation(train_idx), settings.batch_size)
-    scale = float(model.input_scale)
+    torch.manual_seed(settings.seed * 1_000_003 + epoch + RANK_SEED_STRIDE * ranks.rank)
+    order = distributed.shard(rng.permutation(train_idx), ranks)
+    if ranks.rank:  # rank 0 goes on with the one-process stream
+        rng = np.random.default_rng([settings.seed, epoch, ranks.rank])
+    batches = chunks(order, distributed.rank_batch_size(settings.batch_size, ranks))
+    scale = float(distributed.unwrap(model).input_scale)
+    device = precision.device
     model.train()
     total_loss, correct = 0.0, 0
     for b, chunk in enumerate(batches, start=1):
@@ -456,31 +450,39 @@ def _train_epoch(
         x = float32_batch(windows, idx)
         if settings.augment:
             x = _augmented(x, rng, scale)
-        y = torch.from_numpy(labels[idx].astype(np.int64))
-        logits = model(torch.from_numpy(x))
-        loss = loss_fn(logits, y)
+        y = torch.from_numpy(labels[idx].astype(np.int64)).to(device)
+        with precision.autocast():
+            logits = model(torch.from_numpy(x).to(device))
+            loss = loss_fn(logits, y)
         optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        nn.utils.clip_grad_norm_(model.parameters(), 1.0)
-        optimizer.step()
+        precision.step(loss, optimizer, model.parameters())
         scheduler.step()
         batch_loss = float(loss.detach())
         total_loss += batch_loss * idx.size
         correct += int((logits.detach().argmax(dim=1) == y).sum())
         if progress is not None:
             progress(TrainEvent("batch", epoch, settings.epochs, b, len(batches), batch_loss))
-    return total_loss / train_idx.size, correct / train_idx.size
+    total_loss, correct, count = distributed.all_sum([total_loss, correct, order.size], ranks)
+    return total_loss / count, correct / count
 
 
 def _validate(
-    model: nn.Module,
+    net: nn.Module,
     windows: Any,
     labels: np.ndarray,
     val_idx: np.ndarray,
     class_names: Sequence[str],
+    ranks: Ranks,
 ) -> tuple[float, ClassificationMetrics]:
-    """Mean cross-entropy (no smoothing) and metrics on the validation windows."""
-    logits = predict_scores(model, windows, val_idx)
+    """Mean cross-entropy (no smoothing) and metrics on the validation windows (each rank
+    scores its share; every rank gets the metrics of all)."""
+    logits = _val_logits(net, windows, val_idx, ranks)
     y = labels[val_idx].astype(np.int64)
     loss = float(nn.functional.cross_entropy(torch.from_numpy(logits), torch.from_numpy(y)))
     return loss, classification_metrics(y, logits.argmax(axis=1), class_names)
+
+
+def _val_logits(net: nn.Module, windows: Any, val_idx: np.ndarray, ranks: Ranks) -> np.ndarray:
+    """Logits of every validation window, each rank scoring its share."""
+    scores = predict_scores(net, windows, distributed.share_of(val_idx, ranks))
+    return distributed.gather_scores(scores, val_idx.size, ranks)

@@ -4,17 +4,31 @@ The project's simulator (:mod:`wovenskin.sim`) trained the shipped model, so sco
 model on its streams grades the project on its own homework (issue 22).  This package
 renders labelled streams from the gesture table of ``docs/gestures.md`` alone, with its
 own people (:mod:`.people`), its own fingertip and skin physics (:mod:`.skins`), its own
-strokes (:mod:`.tracks`, :mod:`.performers`, :mod:`.invalid`) and its own stream
-assembly (:mod:`.streams`).  It never imports :mod:`wovenskin.sim` (a test parses the
-imports); what it models and how it differs is in ``docs/independent-streams.md``.
+strokes (:mod:`.tracks`, :mod:`.performers`, :mod:`.invalid`, and :mod:`.strokes` for a
+user's custom gestures) and its own stream assembly (:mod:`.streams`).  It never imports
+:mod:`wovenskin.sim` (a test parses the imports); what it models and how it differs is in
+``docs/independent-streams.md``.
 """
 
 from __future__ import annotations
 
+from wovenskin.bench.independent.skins import TYPICAL_GAIN, WEAK_GAIN
 from wovenskin.bench.independent.streams import (
     GENERATOR,
     gesture_stream,
     mixed_stream,
+    person_of,
+    render_stream,
+    skin_of,
 )
 
-__all__ = ["GENERATOR", "gesture_stream", "mixed_stream"]
+__all__ = [
+    "GENERATOR",
+    "TYPICAL_GAIN",
+    "WEAK_GAIN",
+    "gesture_stream",
+    "mixed_stream",
+    "person_of",
+    "render_stream",
+    "skin_of",
+]

@@ -37,6 +37,12 @@ from wovenskin.bench.independent.tracks import Finger
 from wovenskin.skin.layout import SkinLayout
 
 PATCH_BLOBS = 5
+GAIN_RANGE = (0.035, 0.35)
+"""The range :meth:`Skin.draw` draws a skin's gain from (log-uniform)."""
+TYPICAL_GAIN = float(np.sqrt(GAIN_RANGE[0] * GAIN_RANGE[1]))
+"""A typical skin's gain: the geometric middle of :data:`GAIN_RANGE` (about 0.111)."""
+WEAK_GAIN = TYPICAL_GAIN / 5.0
+"""A weak skin's gain: about a fifth of a typical skin's change (issue 23)."""
 REFERENCE_PRESSURE_N_MM2 = 0.013  # a firm 1.5 N press on a 12 mm fingertip (13 kPa)
 TAIL_S = 0.3  # frames rendered past a touch's last contact (the fabric relaxing)
 
@@ -68,7 +74,7 @@ class Skin:
         return cls(
             baseline_counts=float(rng.uniform(15000.0, 60000.0)),
             baseline_spread=float(rng.uniform(0.03, 0.15)),
-            gain=log_uniform(rng, 0.035, 0.35),
+            gain=log_uniform(rng, *GAIN_RANGE),
             channel_spread=0.3,
             saturation=float(rng.uniform(1.0, 4.0)),
             gamma=float(rng.uniform(0.35, 0.8)),
@@ -124,9 +130,14 @@ def pressure_signal(fingers: list[Finger], layout: SkinLayout, gamma: float) -> 
 
 
 class SkinRenderer:
-    """A drawn :class:`Skin` on a layout: per-channel maps and the signal chain."""
+    """A drawn :class:`Skin` on a layout: per-channel maps and the signal chain.
 
-    def __init__(self, skin: Skin, layout: SkinLayout, fs: float) -> None:
+    ``noise_seed`` (default: from the skin's ``channel_seed``) seeds the white noise, so
+    the same skin in several streams need not repeat its noise."""
+
+    def __init__(
+        self, skin: Skin, layout: SkinLayout, fs: float, noise_seed: int | None = None
+    ) -> None:
         self.skin, self.layout, self.fs = skin, layout, fs
         rng = np.random.default_rng(skin.channel_seed)
         shape = layout.shape
@@ -141,6 +152,8 @@ class SkinRenderer:
         self.channel_drift = rng.normal(0.0, skin.channel_drift_per_min, shape)
         self.wave_phase = float(rng.uniform(0.0, 2 * np.pi))
         self.noise_rng = np.random.default_rng(rng.integers(2**31))
+        if noise_seed is not None:
+            self.noise_rng = np.random.default_rng([int(noise_seed), skin.channel_seed])
 
     def response(self, fingers: list[Finger]) -> np.ndarray:
         """``(n + tail, rows, cols)`` relative change of every channel during one touch."""

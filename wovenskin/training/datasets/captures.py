@@ -49,6 +49,7 @@ def build_dataset_from_captures(
     except ValueError as exc:
         raise DatasetError(one_line(exc)) from exc
     norm = (normalisation or CaptureNormalisation()).resolved(captures)
+    group_spreads = norm.group_spreads(captures) if norm.per_group else {}
     n, _, rows, cols = captures.frames.shape
     counts = [capture_window_ends(int(length), window_frames, stride).size
               for length in captures.lengths]  # fmt: skip
@@ -67,7 +68,9 @@ def build_dataset_from_captures(
         infos = []
         for i in range(n):
             length = int(captures.lengths[i])
-            normalised = norm.apply(captures.frames[i, :length])
+            normalised = norm.apply(
+                captures.frames[i, :length], group_spreads.get(str(captures.groups[i]))
+            )
             windows[bounds[i] : bounds[i + 1]] = capture_windows(
                 normalised, length, window_frames, stride
             )

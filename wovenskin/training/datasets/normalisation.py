@@ -33,6 +33,11 @@ class CaptureNormalisation:
       large differences of force between people; the floor keeps a capture without
       touch from being blown up to look like one.  ``per_capture=False``: every capture
       is divided by ``reference_scale``, keeping absolute levels (and force differences).
+    - ``per_group=True``: every capture is divided by its group's (participant's) median
+      spread instead, floored the same way: differences of force between people go, the
+      differences between one person's gestures stay.  The group's spread comes from all
+      the group's captures at hand, raw values only (at test time: the new person's
+      unlabelled captures); :meth:`group_spreads` computes it, :meth:`apply` takes it.
     """
 
     offset_quantile: float = 0.05
@@ -40,6 +45,7 @@ class CaptureNormalisation:
     per_capture: bool = True
     floor_fraction: float = 0.5
     reference_scale: float | None = None
+    per_group: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.offset_quantile < self.scale_quantile <= 1.0:
@@ -55,6 +61,8 @@ class CaptureNormalisation:
             raise ConfigError(f"floor_fraction must be positive, got {self.floor_fraction}")
         if not isinstance(self.per_capture, bool):
             raise ConfigError(f"per_capture must be true or false, got {self.per_capture!r}")
+        if not isinstance(self.per_group, bool):
+            raise ConfigError(f"per_group must be true or false, got {self.per_group!r}")
 
     def offset_and_spread(self, frames: np.ndarray) -> tuple[float, float]:
         """``(offset, spread)`` of one capture's valid frames."""
@@ -73,18 +81,34 @@ class CaptureNormalisation:
         reference = float(np.median(spreads))
         return replace(self, reference_scale=reference if reference > 0 else 1.0)
 
-    def scale(self, spread: float) -> float:
-        """The divisor for a capture of this ``spread``."""
+    def group_spreads(self, captures: LabelledCaptures) -> dict[str, float]:
+        """The median spread of every group's captures (``per_group``; labels unused)."""
+        spreads = np.array(
+            [
+                self.offset_and_spread(captures.frames[i, : captures.lengths[i]])[1]
+                for i in range(len(captures.lengths))
+            ]
+        )
+        groups = np.asarray(captures.groups).astype(str)
+        return {g: float(np.median(spreads[groups == g])) for g in sorted(set(groups.tolist()))}
+
+    def scale(self, spread: float, group_spread: float | None = None) -> float:
+        """The divisor for a capture of this ``spread`` (of this ``group_spread``)."""
         if self.reference_scale is None:
             raise ValueError("resolve the reference scale first (CaptureNormalisation.resolved)")
+        if self.per_group:
+            if group_spread is None:
+                raise ValueError("per-group normalisation needs the group's spread")
+            return max(group_spread, self.floor_fraction * self.reference_scale)
         if not self.per_capture:
             return self.reference_scale
         return max(spread, self.floor_fraction * self.reference_scale)
 
-    def apply(self, frames: np.ndarray) -> np.ndarray:
-        """One capture's valid frames ``(T, R, C)``, normalised, as float32."""
+    def apply(self, frames: np.ndarray, group_spread: float | None = None) -> np.ndarray:
+        """One capture's valid frames ``(T, R, C)``, normalised, as float32
+        (``group_spread``: its group's, from :meth:`group_spreads`, for ``per_group``)."""
         offset, spread = self.offset_and_spread(frames)
-        scale = self.scale(spread)
+        scale = self.scale(spread, group_spread)
         return ((np.asarray(frames, dtype=np.float64) - offset) / scale).astype(np.float32)
 
     def to_dict(self) -> dict:

@@ -37,6 +37,7 @@ from wovenskin.signal.live_skin import RateMeter
 from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.ports import list_ports
 from wovenskin.tasks import TASKS, Task, make_task
+from wovenskin.ui.dashboard.adapt_flow import BLOCKED_WHILE_RECORDING, AdaptFlow
 from wovenskin.ui.dashboard.plan import next_step
 from wovenskin.ui.dashboard.questionnaire import forms, record_answers
 from wovenskin.ui.dashboard.scene import ArmScene, TaskScene
@@ -46,7 +47,8 @@ from wovenskin.ui.dashboard.trials import StudyPanel
 
 SessionOpener = Callable[..., ControlSession]
 """``opener(skin_spec, robot_spec)`` -> an unstarted session; with a task chosen it is
-called as ``opener(skin_spec, robot_spec, task=Task)`` (``open_session(..., task=)``)."""
+called as ``opener(skin_spec, robot_spec, task=Task)`` (``open_session(..., task=)``), and
+with ``model=DIR`` added once the page put another model in use (record and adapt)."""
 
 COMMANDS = (
     "stop",
@@ -66,8 +68,10 @@ COMMANDS = (
     "trial",
     "questionnaire",
     "plan",
+    "adapt",
 )
 TASK_STATE_PERIOD_S = 0.2  # the task's measures in the page: 5 per second (pour: 1 ms each)
+KEEP = object()  # _switch: keep the model in use
 DEFAULT_SIM_LOOKAHEAD = "0.03"  # s of frames the simulated skin renders ahead (touch latency)
 
 
@@ -105,6 +109,7 @@ class DashboardRunner:
         task: str | None = None,
         interface: str = "skin",
         study_dir: str | Path | None = None,
+        adapt: AdaptFlow | None = None,
     ) -> None:
         if not 1.0 <= ui_rate_hz <= 120.0:
             raise ConfigError(f"page update rate must be 1-120 Hz, got {ui_rate_hz}")
@@ -121,6 +126,8 @@ class DashboardRunner:
         self.inputs = PageInputs(interface)
         self.study = StudyPanel(study_dir)
         self.plan: dict | None = None  # the page's participant's next planned condition
+        self.model: str | None = None  # a model the page put in use (None: the opener's)
+        self.adapt = adapt if adapt is not None else AdaptFlow()  # record and adapt (panel)
         self._task_state: tuple[float, dict | None] = (-1.0, None)
         self.timeline = Timeline()
         self.latency = TouchLatency()
@@ -148,6 +155,7 @@ class DashboardRunner:
 
     def close(self) -> None:
         self._stop.set()
+        self.adapt.close()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
         if self.session is not None:
@@ -165,11 +173,17 @@ class DashboardRunner:
         with self._lock:
             return self._snapshot
 
+    def _class_names(self) -> tuple[str, ...]:
+        """The running model's class names (custom gestures included), else the 15."""
+        session = self.session
+        names = tuple(session.state.class_names) if session is not None else ()
+        return names or CLASS_NAMES
+
     def describe(self) -> dict:
         """What the page needs once: classes, scene shapes, commands, gestures to perform."""
         return {
             "type": "scene",
-            "classes": list(CLASS_NAMES),
+            "classes": list(self._class_names()),
             "gestures": [name for name in CLASS_NAMES if name != "invalid"],
             "scene": self.scene.describe() if self.scene is not None else None,
             "workspace": self._workspace(),
@@ -187,8 +201,9 @@ class DashboardRunner:
 
     @property
     def scene_key(self) -> str:
-        """What the page's 3D view shows: it needs :meth:`describe` again when this changes."""
-        return f"{self.robot_spec}|{self.task_name or ''}"
+        """What the page's 3D view and class bars show: it needs :meth:`describe` again when
+        this changes."""
+        return f"{self.robot_spec}|{self.task_name or ''}|{self.model or ''}"
 
     def _workspace(self) -> dict | None:
         """The safety layer's workspace box (m, base frame), drawn in the 3D view."""
@@ -231,10 +246,11 @@ class DashboardRunner:
 
     def _build(self, skin: str, robot: str, task: str | None) -> tuple[ControlSession, Task | None]:
         """An unstarted session (on a new scene of ``task``, when given) and that scene."""
+        extra = {"model": self.model} if self.model is not None else {}
         if task is None:
-            return self._opener(skin, robot), None
+            return self._opener(skin, robot, **extra), None
         scene = make_task(task)
-        return self._opener(skin, robot, task=scene), scene
+        return self._opener(skin, robot, task=scene, **extra), scene
 
     def _begin(
         self, session: ControlSession, skin: str, robot: str, task: Task | None = None
@@ -271,6 +287,7 @@ class DashboardRunner:
                 session.state.messages.append(f"error: {self.failure}")
                 time.sleep(0.05)
                 ticks = 0
+            self.adapt.tick(self, session)
             now = time.monotonic()
             if ticks:
                 self._loop_rate.add(ticks, now)
@@ -326,6 +343,7 @@ class DashboardRunner:
             "study": {**self.study.part(float(session.now)), "plan": self.plan},
             "task": self._task_part(session),
             "sim_slowed_s": None if (source := self._sim_source()) is None else source.slowed_s,
+            "adapt": self.adapt.part(self, float(session.now)),
         }
         snapshot = build_snapshot(
             session,
@@ -368,6 +386,8 @@ class DashboardRunner:
         session = self.session
         assert session is not None
         name = command["cmd"]
+        if self.adapt.recording_now and name in BLOCKED_WHILE_RECORDING:
+            raise ConfigError("recording for adapt: the arm stays held until it ends (or Cancel)")
         if name == "stop":
             session.emergency_stop("stop button")
         elif name == "resume":
@@ -426,6 +446,8 @@ class DashboardRunner:
             self.plan = next_step(self.study.study_dir, command.get("participant"))
         elif name == "questionnaire":
             session.state.messages.append(record_answers(self.study.study_dir, command))
+        elif name == "adapt":
+            self.adapt.command(self, session, command)
 
     def _trial(self, session: ControlSession, op: str, participant: object) -> None:
         t = float(session.now)
@@ -441,8 +463,9 @@ class DashboardRunner:
         who = participant or (self.plan or {}).get("participant")
         self.plan = next_step(self.study.study_dir, who)
 
-    def _switch(self, skin: str, robot: str, task: str | None = None) -> None:
-        """Replace this session by one with another skin or robot.
+    def _switch(self, skin: str, robot: str, task: str | None = None, model: Any = KEEP) -> None:
+        """Replace this session by one with another skin, robot or ``model`` (a checkpoint
+        directory; None: the opener's own).
 
         The new session is built completely first (spec parsed, skin source and robot
         backend created, replay files read, model and mapping loaded: everything short of
@@ -453,10 +476,12 @@ class DashboardRunner:
         """
         if self.study.running:
             raise ConfigError("a trial is running: end it before switching")
+        old_model, self.model = self.model, (self.model if model is KEEP else model)
         try:
             skin = _with_lookahead(skin)
             candidate, scene = self._build(skin, robot, task)  # builds all, connects nothing
         except Exception as exc:
+            self.model = old_model
             why = " ".join(str(exc).split()) or type(exc).__name__
             raise ConfigError(
                 f"kept skin {self.skin_spec} and robot {self.robot_spec}: "
@@ -471,6 +496,7 @@ class DashboardRunner:
             self.session = self._begin(candidate, skin, robot, scene)
             failure = None
         except Exception as exc:
+            self.model = old_model
             self.session = self._open(old_skin, old_robot, old_task)
             failure = exc
         self.session.speed_scale = speed

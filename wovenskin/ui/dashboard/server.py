@@ -56,6 +56,7 @@ from fastapi.staticfiles import StaticFiles
 
 from wovenskin.recording.untrusted import loads_json
 from wovenskin.sim.live_touches import Fingertip
+from wovenskin.ui.dashboard.adapt_api import add_adapt_routes
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.teleop import PageHold, handle_input
 
@@ -290,6 +291,7 @@ def create_app(runner: DashboardRunner, token: str | None = None) -> FastAPI:
     async def state() -> JSONResponse:
         return JSONResponse(runner.latest() or {"type": "state", "seq": 0})
 
+    add_adapt_routes(app, runner, same_origin)  # the "Record & adapt" panel (adapt_api.py)
     app.mount("/static", StaticFiles(directory=static_dir()), name="static")
 
     @app.websocket("/ws")

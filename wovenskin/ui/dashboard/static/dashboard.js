@@ -4,6 +4,7 @@
 // skin's physics on the server and through the same recogniser and safety layer as a real skin.
 import * as THREE from "./vendor/three.min.js";
 import { makeTaskView, setupStudy } from "./study.js";
+import { setupAdapt } from "./adapt.js";
 
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -82,6 +83,7 @@ function onState(state) {
   arm.update(state.robot);
   taskView.update(state.task);
   study.update(state);
+  adapt.update(state);
   drawTimeline(state);
   updateMessages(state.messages);
 }
@@ -738,6 +740,8 @@ const arm = (() => {
 })();
 const taskView = makeTaskView(THREE, arm, page);
 const study = setupStudy({ $, page, send, command });
+const adapt = setupAdapt({ $, colour, token });
+page.adapt = adapt; // for tests and the browser console
 
 sizeSkinCanvas();
 connect();

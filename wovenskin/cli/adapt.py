@@ -1,0 +1,105 @@
+"""``wovenskin adapt``: fine-tune the recogniser to one person's recordings (needs PyTorch)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+from rich.markup import escape
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+)
+
+from wovenskin.cli.app import app, console, err_console, require_torch, user_errors
+from wovenskin.errors import ConfigError
+from wovenskin.io import to_jsonable
+
+
+@app.command()
+@user_errors
+def adapt(
+    recordings: list[Path] = typer.Argument(
+        ..., help="Labelled streams (.npz) or guided recordings (.wsrec) of one person on one skin."
+    ),
+    out: Path = typer.Option(..., help="Directory of the adapted model (and adapt.json)."),
+    base: Path = typer.Option(
+        None, help="Model to start from (default: the shipped model)."
+    ),
+    held_out: float = typer.Option(
+        0.25, help="Share of the trials held out to score base and adapted model."
+    ),
+    epochs: int = typer.Option(None, help="Fine-tuning epochs (default: AdaptSettings')."),
+    windows: int = typer.Option(
+        None, help="Gesture windows cut from the recordings (default: AdaptSettings')."
+    ),
+    rehearsal: int = typer.Option(
+        None,
+        help="Simulated other people mixed into training so the model does not forget "
+        "them (0: none; default: AdaptSettings').",
+    ),
+    seed: int = typer.Option(0, help="Seed of the split, the rehearsal people and training."),
+    threads: int = typer.Option(1, help="Torch and ONNX Runtime threads."),
+    force: bool = typer.Option(
+        False, help="Install the adapted model even if it scores worse than the base."
+    ),
+    overwrite: bool = typer.Option(False, help="Replace a model already in --out."),
+    json_out: bool = typer.Option(False, "--json", help="Print the report as one JSON object."),
+) -> None:
+    """Adapt the recogniser to a person and skin: before/after on held-out trials, per class.
+
+    The adapted model is a model directory like any other (run/replay/eval-stream
+    --model OUT, the dashboard).  It is installed in OUT only when it scores at least as
+    well as the base on the held-out trials; otherwise it is kept in OUT/rejected and the
+    command exits with code 2.
+    """
+    require_torch("wovenskin adapt")
+    from dataclasses import replace
+
+    from wovenskin.training.adapt import AdaptRefused, AdaptSettings, adapt_model
+
+    out_has_model = (out / "meta.json").is_file() or (out / "adapt.json").is_file()
+    if out_has_model and not overwrite:
+        raise ConfigError(f"{out} already holds an adapted model; give --overwrite to replace it")
+    settings = AdaptSettings(held_out_fraction=held_out, seed=seed, threads=threads, force=force)
+    chosen = {"epochs": epochs, "user_windows": windows, "rehearsal_recordings": rehearsal}
+    settings = replace(settings, **{k: v for k, v in chosen.items() if v is not None})
+    ui = err_console if json_out else console
+    bar = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[note]}"),
+        TimeElapsedColumn(),
+        console=ui,
+        transient=True,
+    )
+    tasks: dict[str, int] = {}
+
+    def show(event) -> None:
+        if event.stage not in tasks:
+            tasks[event.stage] = bar.add_task(event.stage, total=max(1, event.total), note="")
+        bar.update(tasks[event.stage], completed=event.done, total=max(1, event.total),
+                   note=event.note)  # fmt: skip
+
+    try:
+        with bar:
+            report = adapt_model(recordings, out, base, settings, show)
+    except AdaptRefused as refused:
+        _print_report(refused.report, ui, json_out)
+        raise
+    _print_report(report, ui, json_out)
+
+
+def _print_report(report, ui, json_out: bool) -> None:
+    """The report as tables and a verdict line (or as one JSON object on stdout)."""
+    if json_out:
+        print(json.dumps(to_jsonable(report.to_dict())))
+        return
+    ui.print(report.table())
+    ui.print(report.class_table())
+    ui.print(escape(report.verdict()), highlight=False, soft_wrap=True)

@@ -1,0 +1,163 @@
+"""Scoring a model on a person's held-out trials and choosing its execution settings.
+
+``wovenskin adapt`` chooses the arbiter's confidence floor (``min_probability``) and its
+hysteresis (``keep_probability``) for the adapted model from :data:`CANDIDATES`.  The
+trials it trained on cannot tell (there every setting looks perfect), so the choice is
+made on held-out trials and *cross-fitted* so that the report stays honest:
+
+- the model runs once over every stream (conditioning, streaming windows, the "being
+  performed" flag; :func:`record_streams`); each candidate's rules are then replayed on
+  those recorded inputs (:func:`replay`), which is exactly what the live pipeline would
+  have done under them, at a fraction of the cost;
+- the candidate with the best :func:`merit` on held-out half 0 is scored on half 1, and
+  the best on half 1 is scored on half 0; pooled, these are the reported "after" figures
+  (no trial is scored by a setting chosen on it);
+- the setting installed with the model is the best on both halves together.
+
+:func:`merit` is one number for "better for the person at the skin": event F1 less
+:data:`FALSE_ACTIVATION_COST` per false activation a minute, so one wrong move a minute
+costs as much as 5 points of F1.  ``adapt`` also uses it to refuse a worse model.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from wovenskin.recognition.arbiter import Arbiter, ArbiterSettings, CommandChange
+from wovenskin.recognition.event_scoring import EventScores, aggregate
+from wovenskin.recognition.pipeline import arbiter_settings_for_model, run_pipeline
+from wovenskin.recording.formats import LabelledStream
+from wovenskin.training.adapt_data import HELD_OUT, TrialSplit, score_held_out
+
+MIN_PROBABILITIES: tuple[float, ...] = (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95)
+KEEP_PROBABILITIES: tuple[float | None, ...] = (None, 0.5)
+CANDIDATES: tuple[dict, ...] = tuple(
+    {"min_probability": p, "keep_probability": k}
+    for p in MIN_PROBABILITIES
+    for k in KEEP_PROBABILITIES
+    if k is None or k < p
+)
+"""The arbiter settings :func:`choose_arbiter` tries (the model's others kept)."""
+FALSE_ACTIVATION_COST = 0.05
+"""F1 points one false activation per minute costs in :func:`merit`."""
+
+Trials = Sequence[tuple[LabelledStream, TrialSplit]]
+
+
+def merit(scores: EventScores) -> float:
+    """Event F1 less :data:`FALSE_ACTIVATION_COST` x false activations per minute."""
+    return scores.f1 - FALSE_ACTIVATION_COST * scores.false_per_min
+
+
+@dataclass(frozen=True)
+class Recorded:
+    """The arbiter's inputs over one whole stream (see :attr:`LivePipeline.recorded`)."""
+
+    class_names: tuple[str, ...]
+    sample_rate_hz: float
+    t: np.ndarray
+    touched: np.ndarray
+    performing: np.ndarray
+    predicted: np.ndarray
+    probabilities: np.ndarray
+
+
+def record_streams(
+    recognizer, streams: Trials, on_stream: Callable[[], None] | None = None
+) -> list[Recorded]:
+    """Run the model once over every stream and keep what its arbiter was fed."""
+    out = []
+    for stream, _ in streams:
+        calls: list = []
+        run_pipeline(stream, recognizer, record=calls)
+        parts = [np.concatenate([np.asarray(c[i]) for c in calls]) for i in range(5)]
+        out.append(
+            Recorded(tuple(recognizer.class_names), float(stream.sample_rate_hz), *parts)
+        )
+        if on_stream is not None:
+            on_stream()
+    return out
+
+
+def replay(recorded: Recorded, settings: ArbiterSettings) -> list[CommandChange]:
+    """The commands an arbiter with ``settings`` gives on recorded inputs."""
+    arbiter = Arbiter(recorded.class_names, recorded.sample_rate_hz, settings)
+    return arbiter.run(
+        recorded.t, recorded.touched, recorded.performing, recorded.predicted,
+        recorded.probabilities,
+    )  # fmt: skip
+
+
+def pooled(
+    runs: Sequence[Sequence[CommandChange]], streams: Trials, folds=HELD_OUT
+) -> EventScores:
+    """Event scores of ``runs`` on the trials of ``folds``, pooled over the streams."""
+    return aggregate(
+        score_held_out(commands, stream, split, folds)
+        for commands, (stream, split) in zip(runs, streams, strict=True)
+    )
+
+
+def score_streams(
+    recognizer, streams: Trials, arbiter: ArbiterSettings, on_stream=None
+) -> EventScores:
+    """Pooled held-out event scores of ``recognizer`` under ``arbiter``."""
+    recorded = record_streams(recognizer, streams, on_stream)
+    return pooled([replay(r, arbiter) for r in recorded], streams)
+
+
+@dataclass(frozen=True)
+class ArbiterChoice:
+    """The installed settings, the cross-fitted held-out scores, and every candidate's."""
+
+    settings: ArbiterSettings
+    held_out: EventScores
+    candidates: list[dict]
+
+
+def _summary(s: EventScores) -> dict:
+    return {"f1": s.f1, "false_activations_per_min": s.false_per_min,
+            "median_latency_s": s.median_latency_s, "merit": merit(s)}  # fmt: skip
+
+
+def _best(options: list[tuple[int, EventScores]]) -> int:
+    """The candidate with the best merit; ties: the lower median latency, then the later
+    (stricter) candidate."""
+
+    def key(option: tuple[int, EventScores]):
+        index, s = option
+        latency = s.median_latency_s
+        return (round(merit(s), 9), -(latency if latency is not None else 9e9), index)
+
+    return max(options, key=key)[0]
+
+
+def choose_arbiter(
+    recognizer, streams: Trials, on_stream: Callable[[], None] | None = None
+) -> ArbiterChoice:
+    """Choose among :data:`CANDIDATES` by cross-fitting on the held-out halves (module doc)."""
+    recorded = record_streams(recognizer, streams, on_stream)
+    scores: list[dict[str, EventScores]] = []
+    settings = []
+    for candidate in CANDIDATES:
+        rules = arbiter_settings_for_model(recognizer, **candidate)
+        runs = [replay(r, rules) for r in recorded]
+        scores.append({
+            "half_0": pooled(runs, streams, (0,)),
+            "half_1": pooled(runs, streams, (1,)),
+            "held_out": pooled(runs, streams),
+        })  # fmt: skip
+        settings.append(rules)
+
+    def best(part: str) -> int:
+        return _best([(i, s[part]) for i, s in enumerate(scores)])
+
+    crossed = aggregate([scores[best("half_0")]["half_1"], scores[best("half_1")]["half_0"]])
+    table = [
+        {**candidate, **{part: _summary(s) for part, s in row.items()}}
+        for candidate, row in zip(CANDIDATES, scores, strict=True)
+    ]
+    return ArbiterChoice(settings[best("held_out")], crossed, table)
