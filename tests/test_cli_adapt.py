@@ -10,10 +10,14 @@ from typer.testing import CliRunner
 
 from wovenskin.bench.independent.streams import render_stream
 from wovenskin.cli import app
+from wovenskin.custom_gestures import CustomGesture
 from wovenskin.recording.formats import write_labelled_stream
 
 pytest.importorskip("torch")
 
+DOUBLE_TAP = CustomGesture(
+    "double_tap", 1, "tap twice with one fingertip", strokes=(((0.0, 0.0),), ((0.0, 0.0),))
+)
 TINY = ["--epochs", "1", "--windows", "300", "--rehearsal", "1"]
 
 
@@ -22,10 +26,12 @@ def person(tmp_path_factory):
     """Three trials of four gestures and a few invalid touches by one person on one skin,
     from the independent generator (not the project's simulator)."""
     path = tmp_path_factory.mktemp("person") / "person.npz"
-    requests = ["swipe_up:rest", "push:smooth", "circle_cw_2f", "swipe_left_2f"] * 3
+    requests = ["swipe_up:rest", "push:smooth", "circle_cw_2f", "double_tap"] * 3
     requests += ["invalid:palm", "invalid:tap", "invalid:brush"]
     order = np.random.default_rng(3).permutation(len(requests))
-    stream = render_stream([requests[i] for i in order], 11, person_seed=5, skin_seed=5)
+    stream = render_stream(
+        [requests[i] for i in order], 11, person_seed=5, skin_seed=5, custom=[DOUBLE_TAP]
+    )
     write_labelled_stream(path, stream)
     return path
 
@@ -40,6 +46,8 @@ def test_adapt_writes_a_model_directory_and_its_report(person, tmp_path):
     assert result.exit_code == 0, result.output
     document = json.loads(result.stdout.strip().splitlines()[-1])
     assert document["accepted"] is True
+    assert document["new_classes"] == ["double_tap"]  # a gesture of the person's own
+    assert document["classes"][-2:] == ["double_tap", "invalid"]
     for key in ("held_out_before", "held_out_after", "arbiter", "arbiter_candidates"):
         assert document[key] is not None
     assert 0 <= document["held_out_after"]["f1"] <= 1
@@ -49,6 +57,7 @@ def test_adapt_writes_a_model_directory_and_its_report(person, tmp_path):
     meta = json.loads((out / "meta.json").read_text())
     assert meta["arbiter"]["min_probability"] == document["arbiter"]["min_probability"]
     assert meta["training_data"]["adaptation"]["inputs"] == [str(person)]
+    assert meta["class_names"] == document["classes"]
     assert not (out / ".adapt-work").exists()
     # a model like any other: the pipeline scores a stream with it
     scored = _invoke(["eval-stream", str(person), "--model", str(out), "--json"])

@@ -192,6 +192,31 @@ def bench_gestures(
         err_console.print(f"wall time {result.wall_s:.1f} s", highlight=False)
 
 
+@bench_app.command("adapt")
+@user_errors
+def bench_adapt(
+    people: int = typer.Option(2, help="New people (each with their own skin) to adapt to."),
+    weak: bool = typer.Option(True, help="Weak skins: a fifth of a typical skin's change."),
+    seconds: float = typer.Option(120.0, help="Length of each person's recording."),
+    tests: int = typer.Option(3, help="Further streams of each person to score on."),
+    custom: bool = typer.Option(False, help="Add two gestures of the people's own."),
+    out: Path = typer.Option(Path("runs/bench/adapt"), help="Folder for recordings and models."),
+    base: Path = typer.Option(None, help="Model to adapt (default: the shipped model)."),
+    json_out: bool = JSON_OUT,
+) -> None:
+    """Adapt to new people and skins made apart from the simulator: their other streams
+    scored by the base and the adapted model (F1, false activations, latency), adapt's time."""
+    require_torch("wovenskin bench adapt")
+    from wovenskin.bench.adapt import run_adapt_benchmark
+
+    with err_console.status("bench adapt...") as status:
+        result = run_adapt_benchmark(
+            out, people, weak, seconds, tests, custom=custom, base=base,
+            progress=lambda what: status.update(f"bench adapt: {what}"),
+        )  # fmt: skip
+    show_bench(result, json_out)
+
+
 @bench_app.command("model")
 @user_errors
 def bench_model(

@@ -38,14 +38,14 @@ MIN_GRID_SIDE = 2
 """Fewest rows (and columns) of a usable skin: a single line of channels has no second
 axis, so half the gestures (a swipe across it, a circle) cannot be told apart."""
 MAX_GRID_SIDE = 32
-"""Most rows (and columns): the shipped architecture recognising a 32x32 grid takes 25 % of
-one core at 200 Hz, a 64x64 one more than the whole core (docs/skins.md)."""
+"""Most rows (and columns): the shipped architecture recognising a 32x32 grid at 200 Hz
+takes under a third of one core, a 64x64 one more than the whole core (docs/skins.md)."""
 MIN_SAMPLE_RATE_HZ = 25.0
 """Slowest usable rate: at 22 Hz and below the default 0.5 s calibration holds fewer frames
 than the smoothing window + 10 that calibration needs (``ConditioningConfig`` refuses it)."""
 MAX_SAMPLE_RATE_HZ = 2000.0
-"""Fastest usable rate: conditioning a 32x32 grid at 2 kHz keeps 4x ahead of real time on
-one core, a 64x64 one falls behind (docs/skins.md)."""
+"""Fastest usable rate: conditioning a 32x32 grid at 2 kHz takes under half of one core, a
+64x64 one more than the whole core (docs/skins.md)."""
 
 
 class UnsupportedSkinError(ConfigError):

@@ -254,13 +254,13 @@ def adapt_model(
 
     before = None
     layout, rate = person.layout, person.conditioning.sample_rate_hz
+    base_recognizer = OnnxRecognizer(base_dir, threads=settings.threads)
+    base_rules = arbiter_settings_for_model(base_recognizer)
     if (layout.rows, layout.cols) == (base_meta.rows, base_meta.cols) and np.isclose(
         rate, base_meta.sample_rate_hz, rtol=1e-3
     ):
-        base_recognizer = OnnxRecognizer(base_dir, threads=settings.threads)
         stages.start("scoring the base model", len(person.pairs))
-        rules = arbiter_settings_for_model(base_recognizer)
-        before = score_streams(base_recognizer, person.pairs, rules, stages.step)
+        before = score_streams(base_recognizer, person.pairs, base_rules, stages.step)
 
     work = out / WORK_DIR
     shutil.rmtree(work, ignore_errors=True)
@@ -286,7 +286,7 @@ def adapt_model(
 
     recognizer = OnnxRecognizer(work / "model", threads=settings.threads)
     stages.start("choosing execution settings", len(person.pairs))
-    choice = choose_arbiter(recognizer, person.pairs, stages.step)
+    choice = choose_arbiter(recognizer, person.pairs, base_rules, stages.step)
     after = choice.held_out
     others = None
     if others_x.shape[0]:

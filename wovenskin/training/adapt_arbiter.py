@@ -1,7 +1,7 @@
 """Scoring a model on a person's held-out trials and choosing its execution settings.
 
 ``wovenskin adapt`` chooses the arbiter's confidence floor (``min_probability``) and its
-hysteresis (``keep_probability``) for the adapted model from :data:`CANDIDATES`.  The
+hysteresis (``keep_probability``) for the adapted model among :func:`candidates`.  The
 trials it trained on cannot tell (there every setting looks perfect), so the choice is
 made on held-out trials and *cross-fitted* so that the report stays honest:
 
@@ -22,25 +22,38 @@ costs as much as 5 points of F1.  ``adapt`` also uses it to refuse a worse model
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from wovenskin.recognition.arbiter import Arbiter, ArbiterSettings, CommandChange
 from wovenskin.recognition.event_scoring import EventScores, aggregate
-from wovenskin.recognition.pipeline import arbiter_settings_for_model, run_pipeline
+from wovenskin.recognition.pipeline import run_pipeline
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.training.adapt_data import HELD_OUT, TrialSplit, score_held_out
 
-MIN_PROBABILITIES: tuple[float, ...] = (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95)
+STEPS: tuple[float, ...] = (-0.15, -0.1, -0.05, 0.0, 0.05, 0.1)
+"""How far from the model's own ``min_probability`` the candidates go."""
 KEEP_PROBABILITIES: tuple[float | None, ...] = (None, 0.5)
-CANDIDATES: tuple[dict, ...] = tuple(
-    {"min_probability": p, "keep_probability": k}
-    for p in MIN_PROBABILITIES
-    for k in KEEP_PROBABILITIES
-    if k is None or k < p
-)
-"""The arbiter settings :func:`choose_arbiter` tries (the model's others kept)."""
+
+
+def candidates(start: ArbiterSettings) -> list[dict]:
+    """The arbiter settings :func:`choose_arbiter` tries: ``min_probability`` within
+    :data:`STEPS` of the base model's (chosen on thousands of events; a handful of held-out
+    trials may move it, not replace it), each with and without the hysteresis
+    ``keep_probability`` of 0.5."""
+    # a base with no recommendation of its own (one trained without a stream evaluation)
+    # is centred on 0.8, the middle of what the shipped models have used
+    own = start.min_probability if start.min_probability >= 0.5 else 0.8
+    floors = sorted({round(min(0.97, max(0.3, own + step)), 3) for step in STEPS})
+    return [
+        {"min_probability": p, "keep_probability": k}
+        for p in floors
+        for k in KEEP_PROBABILITIES
+        if k is None or k < p
+    ]
+
+
 FALSE_ACTIVATION_COST = 0.05
 """F1 points one false activation per minute costs in :func:`merit`."""
 
@@ -74,9 +87,7 @@ def record_streams(
         calls: list = []
         run_pipeline(stream, recognizer, record=calls)
         parts = [np.concatenate([np.asarray(c[i]) for c in calls]) for i in range(5)]
-        out.append(
-            Recorded(tuple(recognizer.class_names), float(stream.sample_rate_hz), *parts)
-        )
+        out.append(Recorded(tuple(recognizer.class_names), float(stream.sample_rate_hz), *parts))
         if on_stream is not None:
             on_stream()
     return out
@@ -91,9 +102,7 @@ def replay(recorded: Recorded, settings: ArbiterSettings) -> list[CommandChange]
     )  # fmt: skip
 
 
-def pooled(
-    runs: Sequence[Sequence[CommandChange]], streams: Trials, folds=HELD_OUT
-) -> EventScores:
+def pooled(runs: Sequence[Sequence[CommandChange]], streams: Trials, folds=HELD_OUT) -> EventScores:
     """Event scores of ``runs`` on the trials of ``folds``, pooled over the streams."""
     return aggregate(
         score_held_out(commands, stream, split, folds)
@@ -136,14 +145,19 @@ def _best(options: list[tuple[int, EventScores]]) -> int:
 
 
 def choose_arbiter(
-    recognizer, streams: Trials, on_stream: Callable[[], None] | None = None
+    recognizer,
+    streams: Trials,
+    start: ArbiterSettings,
+    on_stream: Callable[[], None] | None = None,
 ) -> ArbiterChoice:
-    """Choose among :data:`CANDIDATES` by cross-fitting on the held-out halves (module doc)."""
+    """Choose among :func:`candidates` around ``start`` (the base model's settings, whose
+    other rules are kept) by cross-fitting on the held-out halves (module doc)."""
     recorded = record_streams(recognizer, streams, on_stream)
     scores: list[dict[str, EventScores]] = []
     settings = []
-    for candidate in CANDIDATES:
-        rules = arbiter_settings_for_model(recognizer, **candidate)
+    tried = candidates(start)
+    for candidate in tried:
+        rules = replace(start, **candidate)
         runs = [replay(r, rules) for r in recorded]
         scores.append({
             "half_0": pooled(runs, streams, (0,)),
@@ -158,6 +172,6 @@ def choose_arbiter(
     crossed = aggregate([scores[best("half_0")]["half_1"], scores[best("half_1")]["half_0"]])
     table = [
         {**candidate, **{part: _summary(s) for part, s in row.items()}}
-        for candidate, row in zip(CANDIDATES, scores, strict=True)
+        for candidate, row in zip(tried, scores, strict=True)
     ]
     return ArbiterChoice(settings[best("held_out")], crossed, table)

@@ -48,8 +48,9 @@ class TrialSplit:
     ``edges_s`` ``(K + 1,)`` are the block edges in time order and ``rank`` ``(K,)`` the
     time-order position of each event, so event ``k`` owns :meth:`block` ``(k)``.
     ``fold`` ``(K,)`` is :data:`TRAINED` for a trained trial and 0 or 1 for a held-out one:
-    the held-out trials of every class are dealt alternately into two halves, so that a
-    choice made on one half can be scored on the other (cross-fitting, :mod:`~.adapt_arbiter`).
+    the held-out trials are dealt alternately into two halves of equal size (class after
+    class), so that a choice made on one half can be scored on the other (cross-fitting,
+    :mod:`~.adapt_arbiter`).
     """
 
     edges_s: np.ndarray
@@ -94,12 +95,15 @@ class TrialSplit:
             if taken[name] < cap[name]:
                 fold[k] = 0
                 taken[name] += 1
-        # balance the halves: deal every class's held-out trials alternately, in time order
-        for name in size:
-            members = [k for k in np.argsort(starts) if labels[k] == name and fold[k] != TRAINED]
-            offset = int(rng.integers(2))
-            for j, k in enumerate(members):
-                fold[k] = (j + offset) % 2
+        # deal the held-out trials alternately into the halves, class after class (in time
+        # order within a class), so the halves are as large as each other and as mixed
+        dealt = [
+            k for name in sorted(size) for k in np.argsort(starts, kind="stable")
+            if labels[k] == name and fold[k] != TRAINED
+        ]  # fmt: skip
+        offset = int(rng.integers(2))
+        for j, k in enumerate(dealt):
+            fold[k] = (j + offset) % 2
         return cls(edges, rank, fold, duration)
 
     def block(self, k: int) -> tuple[float, float]:

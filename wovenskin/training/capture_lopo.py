@@ -2,8 +2,9 @@
 
 :func:`leave_one_participant_out` trains one model per participant of the file on all the
 others (:func:`~wovenskin.training.capture_train.train_captures_split`) and scores that
-participant's captures (:func:`~wovenskin.training.capture_eval.score_captures`).  Needs
-torch.
+participant's captures (:func:`~wovenskin.training.capture_eval.score_captures`), after
+adapting the model to them without their labels when the recipe self-trains
+(:mod:`~wovenskin.training.capture_selftrain`).  Needs torch.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from wovenskin.io import write_json
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.training.capture_eval import CaptureEvaluation, per_class_dict, score_captures
 from wovenskin.training.capture_prep import read_capture_file
+from wovenskin.training.capture_selftrain import ADAPTED_DIR, self_train
 from wovenskin.training.capture_train import internal_validation, train_captures_split
 from wovenskin.training.config import CAPTURE_DEFAULTS, TrainConfig
 from wovenskin.training.history import TrainEvent
@@ -41,12 +43,16 @@ class FoldResult:
     epochs_run: int
     train_seconds: float
     checkpoint_dir: str
+    accuracy_before_self_training: float | None = None
+    """The fold model's capture accuracy before it adapted to the participant (when the
+    recipe self-trains; ``evaluation`` is then the adapted model's)."""
 
     def to_dict(self) -> dict[str, Any]:
         e = self.evaluation
         return {
             "participant": self.participant,
             "capture_accuracy": e.capture_accuracy,
+            "capture_accuracy_before_self_training": self.accuracy_before_self_training,
             "window_accuracy": e.window_accuracy,
             "macro_f1": e.captures.macro_f1,
             "n_captures": e.captures.n,
@@ -146,6 +152,11 @@ def leave_one_participant_out(
     ``config``, default :data:`CAPTURE_DEFAULTS`; internal validation drawn from the other
     participants only; never resumed) into ``out_dir/fold-<participant>/`` and scores that
     participant's captures with ONNX Runtime (:func:`score_captures`, ``config.threads``).
+    With ``config.captures.self_training_epochs`` the fold's model is then adapted to that
+    participant's captures without their labels
+    (:func:`~wovenskin.training.capture_selftrain.self_train`, into
+    ``fold-<participant>/adapted/``), the adapted model is what is scored, and the fold
+    keeps the score before adaptation too.
     ``progress`` gets every fold's training events, ``on_fold`` every finished
     :class:`FoldResult`; ``out_dir/lopo.json`` is rewritten after every fold.
     """
@@ -179,9 +190,22 @@ def leave_one_participant_out(
         evaluation = score_captures(
             OnnxRecognizer(fold_dir, threads=config.threads), captures, held_out, source=str(path)
         )
+        before: float | None = None
+        if config.captures.self_training_epochs > 0:
+            assert evaluation.log_probs is not None
+            before = evaluation.capture_accuracy
+            self_train(
+                captures, str(path), train_ids, val_ids, held_out, evaluation.log_probs,
+                fold_dir, config, progress,
+            )  # fmt: skip
+            train_seconds = time.perf_counter() - fold_started
+            evaluation = score_captures(
+                OnnxRecognizer(fold_dir / ADAPTED_DIR, threads=config.threads),
+                captures, held_out, source=str(path),
+            )  # fmt: skip
         fold = FoldResult(
             index, len(names), name, evaluation, trained.best_epoch, trained.epochs_run,
-            train_seconds, str(fold_dir),
+            train_seconds, str(fold_dir), before,
         )  # fmt: skip
         result.folds.append(fold)
         result.seconds = time.perf_counter() - started

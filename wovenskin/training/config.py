@@ -60,8 +60,12 @@ class CaptureConfig:
     ``eval_stride`` count model frames.  ``windows_per_capture`` random windows of every
     training capture make one epoch.  ``symmetries``: flip (and on square grids transpose)
     training windows at random, and average the log-probabilities over the same symmetries
-    when scoring.  The rest are the random window array's augmentations
+    when scoring.  ``gain`` to ``mix`` are the random window array's augmentations
     (:class:`~wovenskin.training.capture_prep.CaptureWindowArray`).
+    ``self_training_epochs`` > 0: leave-one-participant-out adapts each fold's model to the
+    held-out person's unlabelled captures, fine-tuning that many epochs on the training
+    captures plus the ``self_training_fraction`` it is surest of, labelled with its own
+    predictions (:mod:`~wovenskin.training.capture_selftrain`).
     """
 
     frame_step: Positive = 2

@@ -299,7 +299,7 @@ class AdaptFlow:
             self._start_recording(runner, session, checked)
         elif op == "cancel":
             if self.phase == "recording":
-                self._end_recording(session, why="cancelled")
+                self._end_recording(session, why="cancelled", runner=runner)
             elif self.job is not None:
                 self.job.cancel()
         elif op == "use":

@@ -25,7 +25,7 @@ from wovenskin.errors import WovenskinError
 from wovenskin.io import to_jsonable
 from wovenskin.training.adapt import AdaptEvent, AdaptRefused, AdaptSettings, adapt_model
 
-NICENESS = 10  # below the dashboard: the live loop wins the CPU
+NICENESS = 5  # below the dashboard: the live loop wins a contended CPU
 
 
 def emit(message: dict[str, Any]) -> None:
