@@ -54,7 +54,7 @@ def test_blocks_partition_the_stream():
     blocks = sorted(split.block(k) for k in range(len(LABELS)))
     assert blocks[0][0] == 0.0
     assert blocks[-1][1] == pytest.approx(len(stream.t) / stream.sample_rate_hz)
-    for (a0, b0), (a1, _) in zip(blocks, blocks[1:], strict=False):
+    for (_, b0), (a1, _) in zip(blocks, blocks[1:], strict=False):
         assert b0 == pytest.approx(a1)
     for k in range(len(LABELS)):  # every trial lies inside its own block
         a, b = split.block(k)

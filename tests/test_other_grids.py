@@ -25,9 +25,11 @@ from typer.testing import CliRunner
 from wovenskin.cli import app
 from wovenskin.recognition.checkpoint_meta import read_meta
 from wovenskin.recording.native import read_recording
+from wovenskin.recording.writer import RecordingWriter
 from wovenskin.runtime.session import open_session
 from wovenskin.sim.pty_skin import FakeSkinDevice
 from wovenskin.sim.stream import simulate_stream
+from wovenskin.skin.frames import SkinInfo
 from wovenskin.skin.layout import SkinLayout
 from wovenskin.training.datasets import open_dataset
 from wovenskin.ui.dashboard.runner import DashboardRunner
@@ -207,3 +209,40 @@ def test_a_device_of_another_grid_than_the_models_is_one_error_line(grid, tmp_pa
     finally:
         session.close()
         device.stop()
+
+
+@pytest.mark.parametrize("shape", GRIDS, ids=lambda g: f"{g[0]}x{g[1]}")
+def test_a_guided_recording_on_a_serial_device_takes_its_grid_from_info(shape, tmp_path):
+    """The serial source assumes 10x10 until INFO: the recording, opened before, is
+    re-described from INFO (no frame was written yet) and holds the device's frames."""
+    layout = SkinLayout(*shape)
+    stream = simulate_stream(6.0, seed=5, layout=layout, gestures=["push"])
+    device = FakeSkinDevice(stream.frames, layout=layout, device_id="grid-skin").start()
+    out = tmp_path / "guided.wsrec"
+    try:
+        _ok(["record", "--out", str(out), "--skin", f"serial:{device.port}", "--gestures",
+             "push", "--trials", "1", "--invalid-trials", "0", "--countdown", "0.3",
+             "--trial-seconds", "0.5"])  # fmt: skip
+    finally:
+        device.stop()
+    recording = read_recording(out)
+    assert (recording.info.rows, recording.info.cols) == shape
+    assert recording.info.device_id == "grid-skin" and len(recording.frames) > 0
+    assert recording.frames.shape[1:] == shape and [lab.label for lab in recording.labels] == [
+        "push"
+    ]
+    assert any(a.stream == "source" for a in recording.annotations)  # kept across the change
+
+
+def test_the_recording_is_re_described_only_before_its_first_frame(tmp_path) -> None:
+    path = tmp_path / "r.wsrec"
+    with RecordingWriter(path, SkinInfo()) as writer:
+        writer.add_annotation("source", 0.0, {"kind": "connected"})
+        writer.change_info(SkinInfo(rows=8, cols=8, device_id="d"))
+        writer.append_frames(np.arange(3), np.arange(3) / 200, np.ones((3, 8, 8)))
+        with pytest.raises(ValueError, match="already holds frames of a 8x8 skin"):
+            writer.change_info(SkinInfo(rows=16, cols=12))
+    recording = read_recording(path)
+    assert (recording.info.rows, recording.info.cols, recording.info.device_id) == (8, 8, "d")
+    assert len(recording.frames) == 3 and len(recording.annotations) == 1
+    assert not recording.warnings

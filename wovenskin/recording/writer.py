@@ -60,6 +60,8 @@ class RecordingWriter:
     known, plus free ``notes``; host, user, version, start time and command line are added
     when missing.  ``settings`` holds configuration such as the conditioning settings.
     Methods are thread-safe.  Closing (also on leaving a ``with`` block) writes the FOOTER.
+    Until the first frame, :meth:`change_info` may describe another skin (a device whose
+    INFO arrived after the recording was opened).
     """
 
     def __init__(
@@ -82,18 +84,17 @@ class RecordingWriter:
         self._pending_count = 0
         self._counts = {"frames": 0, "calibrations": 0, "labels": 0, "annotations": 0}
         self._closed = False
-        header = encode_document(
-            {
-                "format": "wovenskin.wsrec",
-                "format_version": FORMAT_VERSION,
-                "info": info.to_dict(),
-                "provenance": {**default_provenance(), **(provenance or {})},
-                "settings": settings or {},
-            }
-        )
+        self._header = {
+            "format": "wovenskin.wsrec",
+            "format_version": FORMAT_VERSION,
+            "info": info.to_dict(),
+            "provenance": {**default_provenance(), **(provenance or {})},
+            "settings": settings or {},
+        }
+        self._before_frames: list[bytes] = []  # records written before the first frame
         self._file = open_new(self.path, overwrite, binary=True)
         self._file.write(MAGIC)
-        self._write_record(RecordType.HEADER, header)
+        self._write_record(RecordType.HEADER, encode_document(self._header))
         self._file.flush()
         os.fsync(self._file.fileno())
         _fsync_directory(self.path.parent)
@@ -130,12 +131,31 @@ class RecordingWriter:
             self._pending.append((seq, t, device_t_us, values))
             self._pending_count += n
             self._counts["frames"] += n
+            self._before_frames.clear()  # the header is final now
             self._keep_durable()
 
     def append_frame(self, frame) -> None:
         """Buffer one :class:`~wovenskin.skin.frames.Frame`."""
         device_t_us = -1 if frame.device_t_us is None else frame.device_t_us
         self.append_frames(frame.seq, frame.t, frame.values, device_t_us)
+
+    def change_info(self, info: SkinInfo) -> None:
+        """Describe the skin as ``info``: the HEADER is rewritten, the records written since
+        kept.  Only before the first frame -- a serial skin declares its grid in INFO after
+        the recording was opened -- and a ``ValueError`` after it."""
+        with self._lock:
+            self._check_open()
+            if self._counts["frames"]:
+                raise ValueError(
+                    f"{self.path} already holds frames of a {self.info.rows}x{self.info.cols} skin"
+                )
+            self._header["info"] = info.to_dict()
+            self._file.seek(len(MAGIC))
+            self._file.truncate()
+            self._write_record(RecordType.HEADER, encode_document(self._header))
+            self._file.write(b"".join(self._before_frames))
+            self.info = info
+            self._sync()
 
     def add_calibration(self, calibration: dict) -> None:
         """Record a calibration (e.g. ``baseline`` and ``noise`` arrays plus settings)."""
@@ -213,7 +233,9 @@ class RecordingWriter:
         payload = encode_document(document)
         with self._lock:
             self._check_open()
-            self._write_record(rtype, payload)
+            record = self._write_record(rtype, payload)
+            if not self._counts["frames"]:  # kept for change_info
+                self._before_frames.append(record)
             self._counts[counter] += 1
             self._keep_durable()
 
@@ -247,8 +269,10 @@ class RecordingWriter:
             payload = pack_frames(seq[block], t[block], device_t_us[block], values[block])
             self._write_record(RecordType.FRAMES, payload)
 
-    def _write_record(self, rtype: RecordType, payload: bytes) -> None:
-        self._file.write(pack_record(rtype, payload))
+    def _write_record(self, rtype: RecordType, payload: bytes) -> bytes:
+        record = pack_record(rtype, payload)
+        self._file.write(record)
+        return record
 
     def _sync(self) -> None:
         self._file.flush()

@@ -148,6 +148,7 @@ class LiveSkin:
             self.state.ended = True
         elif event.kind == "info" and event.info is not None:
             info = event.info
+            self._record_info(info)
             if (info.rows, info.cols) != self._shape:
                 self._shape = (info.rows, info.cols)
                 self._warn(
@@ -166,6 +167,16 @@ class LiveSkin:
         if event.kind != "info":
             self._on_message(f"skin: {event.kind} {event.message}".strip())
 
+    def _record_info(self, info: SkinInfo) -> None:
+        """The recording describes the skin its device declared, where it holds no frame yet;
+        after its first frame it keeps its grid (frames of another are not recorded)."""
+        if self.recorder is None or self.recorder.info == info:
+            return
+        try:
+            self.recorder.change_info(info)
+        except ValueError as exc:
+            self._warn(f"the recording keeps its first skin description: {exc}")
+
     def _consume(self, frames: list[Frame]) -> LiveBlock | None:
         shape = self._shape
         good = [f for f in frames if f.values.shape == shape]
@@ -174,8 +185,9 @@ class LiveSkin:
         if not good:
             return None
         raw = np.stack([f.values for f in good]).astype(np.float32, copy=False)
-        if self.recorder is not None:
-            self.recorder.append_frames(
+        recorder = self.recorder
+        if recorder is not None and (recorder.info.rows, recorder.info.cols) == shape:
+            recorder.append_frames(
                 np.array([f.seq for f in good], dtype=np.int64),
                 np.array([f.t for f in good], dtype=np.float64),
                 raw,

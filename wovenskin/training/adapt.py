@@ -14,13 +14,15 @@ recordings and a base model (the shipped one by default) and
 4. fine-tunes from the base model's torch weights (:mod:`~.transfer`: a class the base
    does not know, a user's own gesture, gets a new output row; a grid the base was not
    made for keeps everything but the stem's projection) at a low learning rate;
-5. chooses the execution settings (``min_probability``) on the trained trials
-   (:mod:`~.adapt_arbiter`);
-6. scores the adapted model on the held-out trials (the "after" figures) and on other
-   people's held-out windows (what it may have forgotten), and
+5. chooses the execution settings (``min_probability``, ``keep_probability``) by
+   cross-fitting on the held-out trials (:mod:`~.adapt_arbiter`), which also gives the
+   adapted model's held-out figures (the "after" figures: no trial is scored by a setting
+   chosen on it);
+6. scores both models on other people's windows (what fine-tuning may have forgotten);
 7. puts the model in ``out`` only when it is not worse than the base on the held-out
-   trials (:func:`~.adapt_arbiter.merit`); otherwise the report is written, the model is
-   kept aside in ``out/rejected`` and :class:`AdaptRefused` is raised.
+   trials (:func:`~.adapt_arbiter.merit`; a base that cannot read the person's grid or
+   rate is replaced by doing nothing, merit 0); otherwise the report is written, the model
+   is kept aside in ``out/rejected`` and :class:`AdaptRefused` is raised.
 
 Every step reports to ``progress`` as an :class:`AdaptEvent`.  The figures are in the
 :class:`~.adapt_report.AdaptReport` written as ``out/adapt.json``.
@@ -293,7 +295,8 @@ def adapt_model(
         others = _other_people(base_model, base_meta, work / "model", others_x, others_y,
                                person.classes)  # fmt: skip
 
-    better = before is None or merit(after) >= merit(before)
+    # without a base figure (another grid or rate) the model must beat doing nothing
+    better = merit(after) >= merit(before) if before is not None else merit(after) > 0.0
     report = AdaptReport(
         base=str(base_dir), out=str(out), inputs=person.paths, classes=person.classes,
         new_classes=list(transfer.new_classes), transfer=transfer.describe(),
@@ -306,9 +309,11 @@ def adapt_model(
     )  # fmt: skip
     _install(work / "model", out, report, choice.settings, report.accepted, started)
     if not report.accepted:
+        floor = "the base" if before is not None else "doing nothing"
         raise AdaptRefused(
-            f"the adapted model scored worse than the base on the held-out trials "
-            f"(merit {merit(after):.3f} < {merit(before):.3f}); it is kept in "
+            f"the adapted model scored worse than {floor} on the held-out trials "
+            f"(merit {merit(after):.3f} < {0.0 if before is None else merit(before):.3f}); "
+            f"it is kept in "
             f"{out / REJECTED_DIR}, not installed (--force installs it anyway)",
             report,
         )

@@ -122,6 +122,8 @@ class AdaptReport:
             head = "installed although worse than the base (--force)"
         elif self.accepted:
             head = "installed"
-        else:
+        elif self.before is not None:
             head = "refused: worse than the base on the held-out trials"
+        else:
+            head = "refused: no better than doing nothing on the held-out trials"
         return f"{head}: {where} (min_probability {p}, {self.seconds:.0f} s)"
