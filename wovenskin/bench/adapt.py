@@ -11,8 +11,8 @@ a fifth of a typical skin's change):
    one (its own execution settings): event F1, false activations a minute, median latency
    from first contact, recall per class.
 
-With ``custom`` the person also performs two gestures of their own (a double tap and an
-L-shaped stroke, the example of ``docs/custom-gestures.md``), ``custom_rounds`` times as
+With ``custom`` the person also performs two gestures of their own (three-finger swipes
+up and down, the example of ``docs/custom-gestures.md``), ``custom_rounds`` times as
 often as each built-in one; adapt adds them as classes.  Their F1 is reported per class,
 and the built-in classes' F1 (built-in events and activations only) beside the base
 model's, which is what the custom classes may cost the others.
@@ -43,19 +43,10 @@ from wovenskin.recording.formats import LabelledStream, write_labelled_stream
 from wovenskin.training.adapt import AdaptRefused, AdaptSettings, adapt_model
 
 CUSTOM: tuple[CustomGesture, ...] = (
-    CustomGesture(
-        "double_tap",
-        1,
-        "tap twice with one fingertip, quickly",
-        strokes=(((0.0, 0.0),), ((0.0, 0.0),)),
-        pause_s=0.15,
-    ),  # fmt: skip
-    CustomGesture(
-        "l_stroke",
-        1,
-        "draw an L: down, then right",
-        strokes=(((0.0, -20.0), (0.0, 15.0), (20.0, 15.0)),),
-    ),  # fmt: skip
+    CustomGesture("swipe_up_3f", 3, "three fingers side by side: swipe up",
+                  strokes=(((0.0, 15.0), (0.0, -15.0)),)),  # fmt: skip
+    CustomGesture("swipe_down_3f", 3, "three fingers side by side: swipe down",
+                  strokes=(((0.0, -15.0), (0.0, 15.0)),)),  # fmt: skip
 )
 """The worked example of docs/custom-gestures.md."""
 

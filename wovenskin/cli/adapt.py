@@ -27,8 +27,11 @@ def adapt(
         ..., help="Labelled streams (.npz) or guided recordings (.wsrec) of one person on one skin."
     ),
     out: Path = typer.Option(..., help="Directory of the adapted model (and adapt.json)."),
-    base: Path = typer.Option(
-        None, help="Model to start from (default: the shipped model)."
+    base: Path = typer.Option(None, help="Model to start from (default: the shipped model)."),
+    mapping: Path = typer.Option(
+        None,
+        help="The mapping file you will run with: warns about gestures it defines that were "
+        "not recorded, and recorded ones it gives no action.",
     ),
     held_out: float = typer.Option(
         0.25, help="Share of the trials held out to score base and adapted model."
@@ -68,6 +71,8 @@ def adapt(
     settings = AdaptSettings(held_out_fraction=held_out, seed=seed, threads=threads, force=force)
     chosen = {"epochs": epochs, "user_windows": windows, "rehearsal_recordings": rehearsal}
     settings = replace(settings, **{k: v for k, v in chosen.items() if v is not None})
+    if mapping is not None:
+        _check_mapping(mapping, recordings)
     ui = err_console if json_out else console
     bar = Progress(
         TextColumn("{task.description}"),
@@ -103,3 +108,22 @@ def _print_report(report, ui, json_out: bool) -> None:
     ui.print(report.table())
     ui.print(report.class_table())
     ui.print(escape(report.verdict()), highlight=False, soft_wrap=True)
+
+
+def _check_mapping(path: Path, recordings: list[Path]) -> None:
+    """Warn about the mapping's gestures with no trials and trials it gives no action."""
+    from wovenskin.cli.app import warn
+    from wovenskin.control.mapping import ActionMapping
+    from wovenskin.gestures import INVALID
+    from wovenskin.recognition.pipeline import load_stream
+
+    actions = ActionMapping.load(path)
+    recorded = {str(x) for p in recordings for x in load_stream(p).event_labels}
+    for name in sorted(set(actions.custom) - recorded):
+        warn(
+            f"{path} defines {name!r} but no recording has a trial of it: the model will "
+            "not know it"
+        )
+    unmapped = sorted(recorded - set(actions.gestures) - {INVALID})
+    if unmapped:
+        warn(f"{path} gives no action to {', '.join(unmapped)}: recognised, they will do nothing")
