@@ -43,10 +43,18 @@ from wovenskin.recording.formats import LabelledStream, write_labelled_stream
 from wovenskin.training.adapt import AdaptRefused, AdaptSettings, adapt_model
 
 CUSTOM: tuple[CustomGesture, ...] = (
-    CustomGesture("swipe_up_3f", 3, "three fingers side by side: swipe up",
-                  strokes=(((0.0, 15.0), (0.0, -15.0)),)),  # fmt: skip
-    CustomGesture("swipe_down_3f", 3, "three fingers side by side: swipe down",
-                  strokes=(((0.0, -15.0), (0.0, 15.0)),)),  # fmt: skip
+    CustomGesture(
+        "swipe_up_3f",
+        3,
+        "three fingers side by side, swipe up about 3 cm",
+        strokes=(((0.0, 15.0), (0.0, -15.0)),),
+    ),  # fmt: skip
+    CustomGesture(
+        "swipe_down_3f",
+        3,
+        "three fingers side by side, swipe down about 3 cm",
+        strokes=(((0.0, -15.0), (0.0, 15.0)),),
+    ),  # fmt: skip
 )
 """The worked example of docs/custom-gestures.md."""
 
