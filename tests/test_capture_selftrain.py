@@ -12,7 +12,7 @@ from wovenskin.recording.formats import write_labelled_captures
 from wovenskin.training.capture_lopo import leave_one_participant_out
 from wovenskin.training.capture_prep import prepare_captures
 from wovenskin.training.capture_selftrain import ADAPTED_DIR, pseudo_labels
-from wovenskin.training.config import TrainConfig
+from wovenskin.training.config import CAPTURE_DEFAULTS, CAPTURE_HPARAMS, CaptureConfig, TrainConfig
 from wovenskin.training.datasets import CaptureNormalisation
 
 
@@ -81,3 +81,19 @@ def test_self_training_never_reads_the_held_out_labels(tmp_path):
     assert d["folds"][0]["capture_accuracy_before_self_training"] == (
         a.accuracy_before_self_training
     )
+
+
+def test_the_default_capture_recipe_is_the_one_measured_on_haart():
+    """docs/benchmarks.md's HAART figure (79.1 %, seed 0) was measured with exactly this."""
+    d = CAPTURE_DEFAULTS
+    assert (d.model, d.epochs, d.lr, d.patience, d.batch_size) == ("tcn", 20, 2e-3, 8, 64)
+    assert d.seed == 0
+    assert (d.weight_decay, d.label_smoothing, d.warmup_epochs) == (0.01, 0.05, 1.0)
+    assert d.captures == CaptureConfig()  # per-capture scaling, no self-training
+    assert (d.captures.frame_step, d.captures.window_frames, d.captures.eval_stride) == (2, 54, 14)
+    assert (d.captures.windows_per_capture, d.captures.gain, d.captures.noise) == (8, 1.25, 0.01)
+    assert d.captures.symmetries and d.captures.self_training_epochs == 0
+    assert not d.captures.normalisation.per_group and d.captures.normalisation.per_capture
+    assert d.resolved_hparams(CAPTURE_HPARAMS) == {
+        "stem_channels": 8, "dim": 32, "window_norm": False,
+    }  # fmt: skip

@@ -69,14 +69,14 @@ def test_adapt_writes_a_model_directory_and_its_report(person, tmp_path):
 
 def test_a_worse_model_is_refused_and_kept_aside(person, tmp_path, monkeypatch):
     """A learning rate 300x too high wrecks the weights: adapt must not install them."""
-    from wovenskin.training import adapt as adapt_module
+    from wovenskin.cli import adapt as adapt_command
 
-    original = adapt_module.AdaptSettings
+    original = adapt_command.AdaptSettings
 
     def wrecking(**kwargs):
-        return original(**{**kwargs, "lr": 0.3})
+        return original(**{**kwargs, "lr": 0.3, "new_class_lr": 0.3})
 
-    monkeypatch.setattr(adapt_module, "AdaptSettings", wrecking)
+    monkeypatch.setattr(adapt_command, "AdaptSettings", wrecking)
     out = tmp_path / "worse"
     result = _invoke(["adapt", str(person), "--out", str(out), *TINY])
     assert result.exit_code == 2, result.output

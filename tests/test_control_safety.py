@@ -722,6 +722,23 @@ def test_random_twists_keep_the_measured_caps_and_the_box_on_the_simulated_arm(
             assert np.all(np.minimum(inside, state.q - joints.lower - box.joint_margin) > -1e-6)
 
 
+def test_a_turning_tool_driven_into_a_corner_stays_in_the_box() -> None:
+    """Hypothesis found it (2026-11-28): turning about y at 1 rad/s while driving into the
+    box's +x/+z corner, the TCP's path bent 1.2 um past the face the straight-line look-ahead
+    had stopped it at; the look-ahead now keeps the arc's sagitta off the walls."""
+    q0 = tm5_900.INITIAL_Q
+    start = tm5_900.forward_kinematics(q0)[:3, 3]
+    box = SafetyLimits(workspace_lower=start - 0.08, workspace_upper=start + 0.08)
+    safe, robot, clock = layer(SimRobot(q0=q0), box)
+    program = [
+        ([0.0, 0.0, 0.0, 0.0, 0.0, 0.0], 0.25), ([0.0, 0.0, 0.0, 0.0, -3.0, 0.0], 0.25),
+        ([1.0, 0.0, 1.0, 0.0, 0.0, 0.0], 0.125), ([1.0, 0.0, 1.0, 0.0, 1.0, 0.0], 0.25),
+    ]  # fmt: skip
+    for twist, seconds in program:
+        for _ in drive(safe, clock, twist, seconds, 0.005):
+            assert box.in_box(robot.state().tcp.position, 1e-6)
+
+
 class SpinningGantry(GantryRobot):
     """A backend whose pose moves turn the tool at 3 rad/s, whatever it is asked."""
 

@@ -115,13 +115,16 @@ def test_check_input_accepts_the_training_input() -> None:
 def test_check_input_refuses_another_grid_in_one_line() -> None:
     with pytest.raises(ValueError) as info:
         make_meta().check_input(6, 8, 30, 200.0, ConditioningConfig())
-    assert str(info.value) == "model expects 10x10 frames at 200 Hz, got 6x8 at 200 Hz"
+    assert str(info.value) == (
+        "model expects 10x10 frames at 200 Hz, got 6x8 at 200 Hz: use a model trained for "
+        "this skin (docs/skins.md)"
+    )
 
 
 def test_check_input_refuses_another_rate_window_or_conditioning() -> None:
     meta = make_meta()
     with pytest.raises(
-        ValueError, match="^model expects 10x10 frames at 200 Hz, got 10x10 at 54 Hz$"
+        ValueError, match=r"^model expects 10x10 frames at 200 Hz, got 10x10 at 54 Hz: use a "
     ):
         meta.check_input(10, 10, 30, 54.0, ConditioningConfig())
     with pytest.raises(ValueError, match="^model expects windows of 30 frames, got 20$"):

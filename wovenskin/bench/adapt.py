@@ -40,7 +40,8 @@ from wovenskin.recognition.pipeline import (
     run_pipeline,
 )
 from wovenskin.recording.formats import LabelledStream, write_labelled_stream
-from wovenskin.training.adapt import AdaptRefused, AdaptSettings, adapt_model
+from wovenskin.training.adapt import AdaptRefused, adapt_model
+from wovenskin.training.adapt_settings import AdaptSettings
 
 CUSTOM: tuple[CustomGesture, ...] = (
     CustomGesture(

@@ -18,6 +18,9 @@ from rich.progress import (
 from wovenskin.cli.app import app, console, err_console, require_torch, user_errors
 from wovenskin.errors import ConfigError
 from wovenskin.io import to_jsonable
+from wovenskin.training.adapt_settings import AdaptSettings
+
+DEFAULTS = AdaptSettings()
 
 
 @app.command()
@@ -34,19 +37,21 @@ def adapt(
         "not recorded, and recorded ones it gives no action.",
     ),
     held_out: float = typer.Option(
-        0.25, help="Share of the trials held out to score base and adapted model."
+        DEFAULTS.held_out_fraction, help="Share of the trials held out to score both models."
     ),
-    epochs: int = typer.Option(None, help="Fine-tuning epochs (default: AdaptSettings')."),
+    epochs: int = typer.Option(DEFAULTS.epochs, help="Fine-tuning epochs."),
     windows: int = typer.Option(
-        None, help="Gesture windows cut from the recordings (default: AdaptSettings')."
+        DEFAULTS.user_windows, help="Gesture windows cut from the recordings."
     ),
     rehearsal: int = typer.Option(
-        None,
+        DEFAULTS.rehearsal_recordings,
         help="Simulated other people mixed into training so the model does not forget "
-        "them (0: none; default: AdaptSettings').",
+        "them (0: none).",
     ),
-    seed: int = typer.Option(0, help="Seed of the split, the rehearsal people and training."),
-    threads: int = typer.Option(1, help="Torch and ONNX Runtime threads."),
+    seed: int = typer.Option(
+        DEFAULTS.seed, help="Seed of the split, the rehearsal people and training."
+    ),
+    threads: int = typer.Option(DEFAULTS.threads, help="Torch and ONNX Runtime threads."),
     force: bool = typer.Option(
         False, help="Install the adapted model even if it scores worse than the base."
     ),
@@ -61,16 +66,15 @@ def adapt(
     command exits with code 2.
     """
     require_torch("wovenskin adapt")
-    from dataclasses import replace
-
-    from wovenskin.training.adapt import AdaptRefused, AdaptSettings, adapt_model
+    from wovenskin.training.adapt import AdaptRefused, adapt_model
 
     out_has_model = (out / "meta.json").is_file() or (out / "adapt.json").is_file()
     if out_has_model and not overwrite:
         raise ConfigError(f"{out} already holds an adapted model; give --overwrite to replace it")
-    settings = AdaptSettings(held_out_fraction=held_out, seed=seed, threads=threads, force=force)
-    chosen = {"epochs": epochs, "user_windows": windows, "rehearsal_recordings": rehearsal}
-    settings = replace(settings, **{k: v for k, v in chosen.items() if v is not None})
+    settings = AdaptSettings(
+        held_out_fraction=held_out, seed=seed, threads=threads, force=force, epochs=epochs,
+        user_windows=windows, rehearsal_recordings=rehearsal,
+    )  # fmt: skip
     if mapping is not None:
         _check_mapping(mapping, recordings)
     ui = err_console if json_out else console

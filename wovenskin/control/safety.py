@@ -458,8 +458,12 @@ class SafetyLayer(Robot):
         commanded velocity plus the model's drift), stays in the box over ``horizon``;
         the backend's tracking error keeps that share of the travel off the walls."""
         drift = self.model.linear_drift(q, twist)
-        travel = float(np.linalg.norm(twist[:3] + drift)) * horizon
-        standoff = self.model.capabilities.tracking_error * travel
+        speed = float(np.linalg.norm(twist[:3] + drift))
+        travel = speed * horizon
+        # A velocity held in the turning tool's frame turns with it at |w|: over the horizon
+        # the TCP leaves the straight line by up to |v| |w| h^2 / 2 (the arc's sagitta bound).
+        bend = 0.5 * speed * float(np.linalg.norm(twist[3:])) * horizon**2
+        standoff = self.model.capabilities.tracking_error * travel + bend
         out = twist.copy()
         out[:3] = keep_in_box(twist[:3] + drift, position, self.limits, horizon, standoff) - drift
         return out

@@ -51,6 +51,7 @@ from wovenskin.skin.layout import SkinLayout
 from wovenskin.training.adapt_arbiter import choose_arbiter, merit, score_streams
 from wovenskin.training.adapt_data import TrialSplit, trial_windows
 from wovenskin.training.adapt_report import AdaptReport
+from wovenskin.training.adapt_settings import AdaptSettings
 from wovenskin.training.checkpoint import load_checkpoint, save_checkpoint
 from wovenskin.training.config import TrainConfig
 from wovenskin.training.datasets.sim import generate_sim_dataset
@@ -73,40 +74,6 @@ class AdaptRefused(WovenskinError):
     def __init__(self, message: str, report: AdaptReport) -> None:
         super().__init__(message)
         self.report = report
-
-
-@dataclass(frozen=True)
-class AdaptSettings:
-    """How ``adapt`` splits, trains and chooses (defaults measured, docs/adapt.md)."""
-
-    held_out_fraction: float = 0.25
-    seed: int = 0
-    epochs: int = 4
-    lr: float = 1e-3
-    batch_size: int = 64
-    user_windows: int = 4000
-    """Gesture windows cut from the person's trained trials (all streams together)."""
-    user_invalid_windows: int = 1600
-    rehearsal_recordings: int = 8
-    """Simulated other people (each a new person and skin, 60 s) mixed into training."""
-    rehearsal_windows: int = 300
-    """Gesture windows per rehearsal recording (plus 40 % as many invalid ones)."""
-    threads: int = 1
-    force: bool = False
-    """Install the adapted model even when it scores worse than the base."""
-
-    def __post_init__(self) -> None:
-        if not 0.0 < self.held_out_fraction < 1.0:
-            raise ConfigError(
-                f"the held-out share must lie in (0, 1), got {self.held_out_fraction}"
-            )
-        for name in ("epochs", "batch_size", "user_windows", "threads"):
-            if getattr(self, name) < 1:
-                raise ConfigError(f"{name} must be at least 1, got {getattr(self, name)}")
-        if self.rehearsal_recordings < 0 or self.rehearsal_windows < 1:
-            raise ConfigError("rehearsal needs recordings >= 0 and windows >= 1")
-        if not self.lr > 0:
-            raise ConfigError(f"the learning rate must be positive, got {self.lr}")
 
 
 @dataclass(frozen=True)
@@ -281,9 +248,11 @@ def adapt_model(
         sample_rate_hz=rate, conditioning=person.conditioning.to_dict(), arbiter={}, metrics={},
     )  # fmt: skip
     save_checkpoint(work / "init", start, init_meta, export_onnx=False)
+    learns_afresh = bool(transfer.new_classes or transfer.reinitialised)
+    lr = settings.new_class_lr if learns_afresh else settings.lr
     trained = _fine_tune(
         np.concatenate([user_x, rehearsal_x]), np.concatenate([user_y, rehearsal_y]),
-        person, base_meta, base_dir, settings, work, rng, stages,
+        person, base_meta, base_dir, replace(settings, lr=lr), work, rng, stages,
     )  # fmt: skip
 
     recognizer = OnnxRecognizer(work / "model", threads=settings.threads)

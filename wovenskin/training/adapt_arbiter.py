@@ -12,7 +12,10 @@ made on held-out trials and *cross-fitted* so that the report stays honest:
 - the candidate with the best :func:`merit` on held-out half 0 is scored on half 1, and
   the best on half 1 is scored on half 0; pooled, these are the reported "after" figures
   (no trial is scored by a setting chosen on it);
-- the setting installed with the model is the best on both halves together.
+- the setting installed with the model is the best on both halves together;
+- "best" charges each candidate :data:`DEPARTURE_COST` for how far it moves from the base
+  model's setting, which was chosen on thousands of events: a dozen held-out trials are a
+  noisy measure, and without a clear gain the base's setting stays.
 
 :func:`merit` is one number for "better for the person at the skin": event F1 less
 :data:`FALSE_ACTIVATION_COST` per false activation a minute, so one wrong move a minute
@@ -132,14 +135,25 @@ def _summary(s: EventScores) -> dict:
             "median_latency_s": s.median_latency_s, "merit": merit(s)}  # fmt: skip
 
 
-def _best(options: list[tuple[int, EventScores]]) -> int:
-    """The candidate with the best merit; ties: the lower median latency, then the later
-    (stricter) candidate."""
+DEPARTURE_COST = 0.5
+"""Merit a candidate gives up per unit of ``min_probability`` it moves from the base's
+(0.05 for a step of 0.1), and for turning on the hysteresis (0.01): a handful of
+held-out trials must show a clear gain before the base's well-measured setting is left."""
 
-    def key(option: tuple[int, EventScores]):
-        index, s = option
+
+def _departure(candidate: dict, start: ArbiterSettings) -> float:
+    moved = abs(candidate["min_probability"] - start.min_probability)
+    return DEPARTURE_COST * moved + (0.01 if candidate["keep_probability"] is not None else 0.0)
+
+
+def _best(options: list[tuple[int, EventScores, float]]) -> int:
+    """The candidate with the best merit less its departure cost; ties: the lower median
+    latency, then the later (stricter) candidate."""
+
+    def key(option: tuple[int, EventScores, float]):
+        index, s, cost = option
         latency = s.median_latency_s
-        return (round(merit(s), 9), -(latency if latency is not None else 9e9), index)
+        return (round(merit(s) - cost, 9), -(latency if latency is not None else 9e9), index)
 
     return max(options, key=key)[0]
 
@@ -166,8 +180,10 @@ def choose_arbiter(
         })  # fmt: skip
         settings.append(rules)
 
+    costs = [_departure(candidate, start) for candidate in tried]
+
     def best(part: str) -> int:
-        return _best([(i, s[part]) for i, s in enumerate(scores)])
+        return _best([(i, s[part], costs[i]) for i, s in enumerate(scores)])
 
     crossed = aggregate([scores[best("half_0")]["half_1"], scores[best("half_1")]["half_0"]])
     table = [

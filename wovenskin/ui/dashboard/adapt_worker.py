@@ -23,7 +23,8 @@ from typing import Any
 
 from wovenskin.errors import WovenskinError
 from wovenskin.io import to_jsonable
-from wovenskin.training.adapt import AdaptEvent, AdaptRefused, AdaptSettings, adapt_model
+from wovenskin.training.adapt import AdaptEvent, AdaptRefused, adapt_model
+from wovenskin.training.adapt_settings import AdaptSettings
 
 NICENESS = 5  # below the dashboard: the live loop wins a contended CPU
 
