@@ -135,10 +135,17 @@ class AdaptBenchResult(BenchResult):
         return table
 
 
-def _stream(person: int, k: int, seconds: float, weak: bool, custom, rounds) -> LabelledStream:
+SEED = 23000
+"""Person ``i`` (and their skin) is drawn with ``seed + i``; their streams with
+``seed + 100 i + k``."""
+
+
+def _stream(
+    person: int, k: int, seconds: float, weak: bool, custom, rounds, seed: int = SEED
+) -> LabelledStream:
     return mixed_stream(
-        seconds, seed=23000 + 100 * person + k, person_seed=23000 + person,
-        skin_seed=23000 + person, gain=WEAK_GAIN if weak else None,
+        seconds, seed=seed + 100 * person + k, person_seed=seed + person,
+        skin_seed=seed + person, gain=WEAK_GAIN if weak else None,
         custom=list(custom) or None, custom_rounds=rounds,
     )  # fmt: skip
 
@@ -164,6 +171,7 @@ def run_adapt_benchmark(
     base: Path | None = None,
     settings: AdaptSettings | None = None,
     progress: Progress | None = None,
+    seed: int = SEED,
 ) -> AdaptBenchResult:
     """Run the benchmark of the module doc; recordings and models are kept under ``out``."""
     say = progress or (lambda what: None)
@@ -178,10 +186,12 @@ def run_adapt_benchmark(
         say(f"person {person}: rendering streams")
         recording = folder / "recording.npz"
         write_labelled_stream(
-            recording, _stream(person, 0, adapt_seconds, weak, defs, custom_rounds), overwrite=True
+            recording,
+            _stream(person, 0, adapt_seconds, weak, defs, custom_rounds, seed),
+            overwrite=True,
         )
         tests = [
-            _stream(person, k, test_seconds, weak, defs, custom_rounds)
+            _stream(person, k, test_seconds, weak, defs, custom_rounds, seed)
             for k in range(1, test_streams + 1)
         ]
         say(f"person {person}: adapting")

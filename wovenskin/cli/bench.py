@@ -202,6 +202,7 @@ def bench_adapt(
     custom: bool = typer.Option(False, help="Add two gestures of the people's own."),
     out: Path = typer.Option(Path("runs/bench/adapt"), help="Folder for recordings and models."),
     base: Path = typer.Option(None, help="Model to adapt (default: the shipped model)."),
+    seed: int = typer.Option(23000, help="Person i and their skin are drawn with seed + i."),
     json_out: bool = JSON_OUT,
 ) -> None:
     """Adapt to new people and skins made apart from the simulator: their other streams
@@ -211,7 +212,7 @@ def bench_adapt(
 
     with err_console.status("bench adapt...") as status:
         result = run_adapt_benchmark(
-            out, people, weak, seconds, tests, custom=custom, base=base,
+            out, people, weak, seconds, tests, custom=custom, base=base, seed=seed,
             progress=lambda what: status.update(f"bench adapt: {what}"),
         )  # fmt: skip
     show_bench(result, json_out)
