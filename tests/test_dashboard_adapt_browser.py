@@ -41,7 +41,10 @@ def test_record_and_adapt_in_the_page(browser, server) -> None:  # noqa: F811
         for box in page.locator("#adapt-gestures input").all():
             if box.get_attribute("value") != "swipe_up":
                 box.uncheck()
-        assert "1 trials" in page.inner_text("#adapt-estimate")
+        page.wait_for_function(  # the estimate follows the boxes on the next state update
+            "document.querySelector('#adapt-estimate').innerText.startsWith('1 trials')",
+            timeout=10_000,
+        )
         page.click("#adapt-start")
         page.wait_for_function(
             "document.querySelector('#adapt-what').classList.contains('trial')", timeout=30_000
