@@ -202,7 +202,9 @@ def bench_adapt(
     custom: bool = typer.Option(False, help="Add two gestures of the people's own."),
     out: Path = typer.Option(Path("runs/bench/adapt"), help="Folder for recordings and models."),
     base: Path = typer.Option(None, help="Model to adapt (default: the shipped model)."),
-    seed: int = typer.Option(23000, help="Person i and their skin are drawn with seed + i."),
+    seed: int = typer.Option(
+        None, help="Person i and their skin are drawn with seed + i (default: the bench's SEED)."
+    ),
     json_out: bool = JSON_OUT,
 ) -> None:
     """Adapt to new people and skins made apart from the simulator: their other streams
@@ -212,8 +214,9 @@ def bench_adapt(
 
     with err_console.status("bench adapt...") as status:
         result = run_adapt_benchmark(
-            out, people, weak, seconds, tests, custom=custom, base=base, seed=seed,
+            out, people, weak, seconds, tests, custom=custom, base=base,
             progress=lambda what: status.update(f"bench adapt: {what}"),
+            **({} if seed is None else {"seed": seed}),
         )  # fmt: skip
     show_bench(result, json_out)
 

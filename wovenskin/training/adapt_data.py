@@ -35,7 +35,13 @@ from wovenskin.signal.config import ConditioningConfig
 from wovenskin.training.datasets.streams import motion_end_s, motion_frames
 from wovenskin.training.stream_windows import characteristic_spans, sample_stream_windows
 from wovenskin.training.window_settings import WindowSettings
-from wovenskin.training.windows import FrameEvents, WindowBatch, align_to_contact, events_to_frames
+from wovenskin.training.windows import (
+    FrameEvents,
+    WindowBatch,
+    align_to_contact,
+    canvas_starts,
+    events_to_frames,
+)
 
 TRAINED = -1
 """The fold of a trained trial in :attr:`TrialSplit.fold`; held-out trials are in 0 or 1."""
@@ -183,15 +189,6 @@ def score_held_out(
     )
 
 
-def _window_ends_inside(mask: np.ndarray, window: int) -> np.ndarray:
-    """``(T,)`` bool: frame ``i`` ends a window whose ``window`` frames all lie in ``mask``."""
-    counts = np.concatenate(([0], np.cumsum(mask, dtype=np.int64)))
-    out = np.zeros(mask.size, dtype=bool)
-    if mask.size >= window:
-        out[window - 1 :] = counts[window:] - counts[:-window] == window
-    return out
-
-
 def trial_windows(
     stream: LabelledStream,
     split: TrialSplit,
@@ -233,7 +230,10 @@ def trial_windows(
     if motion_start is not None and motion_stop is not None:
         motion_start, motion_stop = motion_start[keep], motion_stop[keep]
     span_start, span_stop = characteristic_spans(trained, motion_start, motion_stop, settings)
-    allowed = _window_ends_inside(split.trained_frames(stream.t), settings.window_frames)
+    # a window may end at frame i when all its frames lie in trained blocks
+    w = settings.window_frames
+    allowed = np.zeros(len(stream.t), dtype=bool)
+    allowed[canvas_starts(split.trained_frames(stream.t), w) + w - 1] = True
     try:
         return sample_stream_windows(
             conditioned.signal, conditioned.touched, trained, span_start, span_stop,
