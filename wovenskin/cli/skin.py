@@ -198,7 +198,11 @@ def devices(all_ports: bool = typer.Option(False, "--all", help="Show every port
 
 @app.command()
 @user_errors
-def info(path: Path = typer.Argument(..., help="A .npz stream/captures or a .wsrec file.")) -> None:
+def info(
+    path: Path = typer.Argument(
+        ..., help="A .npz stream/captures, a .wsrec file or a wovenskin ROS 2 bag (.mcap)."
+    ),
+) -> None:
     """Describe a data file: kind, shape, rate, labels, provenance, problems."""
     from wovenskin.recording.inspect import describe_file
 
@@ -208,11 +212,16 @@ def info(path: Path = typer.Argument(..., help="A .npz stream/captures or a .wsr
 @app.command()
 @user_errors
 def convert(
-    src: Path = typer.Argument(..., help="Input: .wsrec recording or labelled-stream .npz."),
-    dst: Path = typer.Argument(..., help="Output: .npz (labelled stream) or .wsrec."),
+    src: Path = typer.Argument(
+        ..., help="Input: .wsrec recording, labelled-stream .npz, or ROS 2 bag (.mcap or dir)."
+    ),
+    dst: Path = typer.Argument(..., help="Output: .npz (labelled stream), .wsrec or .mcap."),
     overwrite: bool = typer.Option(False, help="Replace an existing output file."),
 ) -> None:
-    """Convert between the native recording format and the labelled-stream format."""
+    """Convert between recordings (.wsrec), labelled streams (.npz) and ROS 2 bags (.mcap).
+
+    .wsrec <-> .mcap is lossless (docs/recording-format.md, "ROS 2 bags"); a bag plays
+    with `ros2 bag play` and opens in Foxglove or PlotJuggler."""
     from wovenskin.recording.inspect import convert_file
 
     console.print(convert_file(src, dst, overwrite=overwrite))

@@ -38,7 +38,7 @@ import numpy as np
 
 from wovenskin.control.gesture_motion import GestureMotion
 from wovenskin.control.mapping import ActionMapping, PoseAction, TwistAction
-from wovenskin.control.motion import TwistShaper
+from wovenskin.control.motion import RELEASE_STOP_S, TwistShaper
 from wovenskin.control.poses import PoseStore
 from wovenskin.control.safety import SafetyLayer
 from wovenskin.control.safety_limits import SafetyLimits
@@ -100,7 +100,8 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self.settings = settings or SessionSettings()
         self.poses = poses
         self.safety = SafetyLayer(robot, limits, clock=self._clock)
-        self.shaper = TwistShaper(self.mapping.settings)
+        release = self.safety.capabilities().release_stop_s  # the arm may ramp stops itself
+        self.shaper = TwistShaper(self.mapping.settings, release or RELEASE_STOP_S)
         self.gesture_motion = GestureMotion(self.mapping)
         self.trace = trace
         self.recorder = recorder

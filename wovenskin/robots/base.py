@@ -210,6 +210,11 @@ class RobotCapabilities:
       reported TCP linear (angular) speed exceeds the commanded one by at most this
       fraction. The safety layer leaves that much headroom under its caps and keeps that
       share of the TCP's travel away from the workspace walls.
+    - ``release_stop_s``: how long the control layer's brake may take to bring a released
+      twist to rest on this arm (None: its own default, 0.05 s). An arm whose controller
+      ramps a velocity step by itself (MoveIt Servo's smoothing filter) declares a short
+      time, so the zero twist of a lift-off goes out on the next tick instead of being
+      ramped twice.
     - ``how_to_complete``: one line telling the user how to supply what is missing.
     - ``gripper``: whether :meth:`Robot.set_gripper` drives a gripper on this arm.
 
@@ -223,6 +228,7 @@ class RobotCapabilities:
     stop_deceleration: tuple[float, float] | None = None
     control_period_s: float = 0.0
     tracking_error: float = 0.0
+    release_stop_s: float | None = None
     how_to_complete: str = ""
     gripper: bool = False
 
@@ -239,6 +245,10 @@ class RobotCapabilities:
                 )
         if not (math.isfinite(self.control_period_s) and self.control_period_s >= 0.0):
             raise ValueError(f"control_period_s must be >= 0, got {self.control_period_s!r}")
+        if self.release_stop_s is not None and not (
+            math.isfinite(self.release_stop_s) and self.release_stop_s > 0.0
+        ):
+            raise ValueError(f"release_stop_s must be > 0, got {self.release_stop_s!r}")
         if not (math.isfinite(self.tracking_error) and 0.0 <= self.tracking_error < 1.0):
             raise ValueError(f"tracking_error must be in [0, 1), got {self.tracking_error!r}")
         poses = {}

@@ -5,7 +5,9 @@ transform at a joint angle, :func:`chain_frames` the base <- frame i transforms 
 whole table and :func:`chain_jacobian` its geometric Jacobian.  :func:`mjcf_from_dh`
 writes a kinematic MuJoCo body tree from a table (each link body's frame is DH frame i-1
 turned by joint i about its z axis), so a display or simulation model and the DH
-equations cannot drift apart: tests compare the two.
+equations cannot drift apart: tests compare the two.  :func:`urdf_from_dh` writes the
+same tree as a kinematic URDF (links ``base``, ``link_1``..``link_n``, ``flange`` and a
+tool tip), which :func:`wovenskin.robots.urdf.load_urdf_chain` reads back.
 """
 
 from __future__ import annotations
@@ -13,9 +15,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+
+from wovenskin.robots.base import JointLimits
+from wovenskin.robots.urdf import matrix_rpy
 
 
 @dataclass(frozen=True)
@@ -174,4 +180,89 @@ def mjcf_from_dh(
         indent = indent[:-2]
         lines.append(f"{indent}</body>")
     lines += ["    </body>", "  </worldbody>", "</mujoco>"]
+    return "\n".join(lines) + "\n"
+
+
+def _row_fixed_part(link: DHLink) -> np.ndarray:
+    """The row's transform at zero joint angle, without the joint's turn about z:
+    ``Rz(offset) Tz(d) Tx(a) Rx(alpha)`` (link frame i <- DH frame i, see below)."""
+    return dh_transform(link, 0.0)
+
+
+def _num(value: float) -> str:
+    """A number as the shortest text that reads back to the same float (tiny values: 0)."""
+    number = float(value)
+    if abs(number) < 1e-15:
+        return "0"
+    text = repr(number)
+    return text[:-2] if text.endswith(".0") else text
+
+
+def _origin(transform: np.ndarray) -> str:
+    xyz = " ".join(_num(v) for v in transform[:3, 3])
+    rpy = " ".join(_num(v) for v in matrix_rpy(transform[:3, :3]))
+    return f'<origin xyz="{xyz}" rpy="{rpy}"/>'
+
+
+def urdf_from_dh(
+    name: str,
+    table: Sequence[DHLink],
+    limits: JointLimits,
+    joint_names: Sequence[str],
+    tool: np.ndarray | None = None,
+    tip_link: str = "tcp",
+    effort: Sequence[float] | None = None,
+) -> str:
+    """A kinematic URDF of the arm (no meshes, no inertias), per the URDF specification
+    (https://wiki.ros.org/urdf/XML/joint).
+
+    Links ``base``, ``link_1``..``link_n``, ``flange`` (DH frame n) and ``tip_link``
+    (``tool``: flange <- tip, 4x4; None: the flange itself).  Link ``link_i`` is DH frame
+    i-1 turned by joint i about its z axis, as in :func:`mjcf_from_dh`, so revolute joint
+    i (named ``joint_names[i-1]``, axis ``0 0 1``) has as origin the fixed part of row i-1,
+    ``Rz(offset) Tz(d) Tx(a) Rx(alpha)`` (joint 1: none), and the fixed joints
+    ``flange_fixed_joint`` and ``<tip_link>_fixed_joint`` carry row n's and the tool.
+    Position limits and velocities come from ``limits``; ``effort`` (N m per joint, which
+    the specification requires and wovenskin ignores) defaults to 0.
+    """
+    n = len(table)
+    lower, upper, speed = (np.asarray(v, dtype=float).reshape(-1) for v in
+                           (limits.lower, limits.upper, limits.max_speed))  # fmt: skip
+    efforts = np.zeros(n) if effort is None else np.asarray(effort, dtype=float).reshape(-1)
+    if not (len(joint_names) == lower.size == upper.size == speed.size == efforts.size == n):
+        raise ValueError("joint names, limits and efforts need one value per DH row")
+    if not (np.all(lower < upper) and np.all(speed > 0.0)):
+        raise ValueError("joint limits need lower < upper and positive speeds")
+    links = ["base", *(f"link_{i + 1}" for i in range(n)), "flange", tip_link]
+    joints = [*joint_names, "flange_fixed_joint", f"{tip_link}_fixed_joint"]
+    if len(set(links)) != len(links) or len(set(joints)) != len(joints) or not all(joints):
+        raise ValueError("link and joint names must be unique and not empty")
+    tool_transform = np.eye(4) if tool is None else np.asarray(tool, dtype=float)
+    if tool_transform.shape != (4, 4) or not np.all(np.isfinite(tool_transform)):
+        raise ValueError("tool must be a finite 4x4 transform")
+    origins = [np.eye(4), *(_row_fixed_part(link) for link in table), tool_transform]
+    lines = [
+        '<?xml version="1.0"?>',
+        "<!-- A kinematic model written by wovenskin.robots.dh.urdf_from_dh from a standard",
+        "     DH table: no meshes, no inertias. Link i is DH frame i-1 turned by joint i. -->",
+        f"<robot name={quoteattr(name)}>",
+        f"  <link name={quoteattr(links[0])}/>",
+    ]
+    for i, joint in enumerate(joints):
+        moving = i < n
+        lines.append(
+            f'  <joint name={quoteattr(joint)} type="{"revolute" if moving else "fixed"}">'
+        )
+        lines.append(f"    <parent link={quoteattr(links[i])}/>")
+        lines.append(f"    <child link={quoteattr(links[i + 1])}/>")
+        lines.append(f"    {_origin(origins[i])}")
+        if moving:
+            lines.append('    <axis xyz="0 0 1"/>')
+            lines.append(
+                f'    <limit lower="{_num(lower[i])}" upper="{_num(upper[i])}"'
+                f' velocity="{_num(speed[i])}" effort="{_num(efforts[i])}"/>'
+            )
+        lines.append("  </joint>")
+        lines.append(f"  <link name={quoteattr(links[i + 1])}/>")
+    lines.append("</robot>")
     return "\n".join(lines) + "\n"

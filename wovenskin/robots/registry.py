@@ -2,7 +2,8 @@
 
 A spec names a backend and its address: ``sim``, ``tm:HOST[:PORT]`` (ports also as
 ``tm:HOST?listen_port=5890&state_port=5891``) or ``ur:HOST[?model=ur5e]`` (the UR model:
-``ur3e``, ``ur5e``, ``ur10e``, ``ur16e``). Options follow a ``?``, joined by ``&``. Every
+``ur3e``, ``ur5e``, ``ur10e``, ``ur16e``) or ``ros2[:]?twist=/topic&...`` (an arm driven
+through MoveIt Servo over ROS 2). Options follow a ``?``, joined by ``&``. Every
 kind also takes ``safety=degraded``: the user's opt-in to run an arm whose declaration
 lacks what the safety layer's full checks need (see
 :class:`wovenskin.control.safety.SafetyLayer` and ``docs/safety.md``).
@@ -19,6 +20,7 @@ from dataclasses import fields
 
 from wovenskin import specs
 from wovenskin.robots.base import Robot
+from wovenskin.robots.ros2.config import ROS2
 from wovenskin.robots.sim.config import SIM
 from wovenskin.robots.spec import Backend, RobotOptions, RobotSpec, port_number
 from wovenskin.robots.techman.config import TECHMAN
@@ -28,6 +30,7 @@ BACKENDS: dict[str, Backend] = {
     "sim": SIM,
     "tm": TECHMAN,
     "ur": UR,
+    "ros2": ROS2,
 }
 
 
@@ -79,7 +82,8 @@ def parse_robot_spec(spec: str) -> RobotSpec:
     except specs.SpecError as exc:
         raise SpecError(spec, exc.why) from None
     backend = BACKENDS.get(parsed.kind)
-    if backend is None or parsed.colon != backend.address:
+    bare_with_colon = backend is not None and backend.colon_optional and not parsed.target
+    if backend is None or (parsed.colon != backend.address and not bare_with_colon):
         raise SpecError(spec, "is not understood")
     host = port = None
     if backend.address:

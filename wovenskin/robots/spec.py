@@ -82,4 +82,5 @@ class Backend:
     build: Callable[[RobotSpec], Robot]
     options: type[RobotOptions] = RobotOptions
     address: bool = True  # "kind:HOST..." (True) or the bare kind (False)
+    colon_optional: bool = False  # the bare kind also as "kind:?options" (ros2:?twist=/x)
     port: str | None = None

@@ -1,7 +1,9 @@
 """The Techman TM5-900: its DH table, joint limits, named postures and DH kinematics.
 
 The numbers are the arm's published standard-DH parameters; ``tm5_900.xml`` (the MuJoCo
-model) is built from the same table and the tests check that both agree. Frames: the
+model) and ``tm5_900.urdf`` (the kinematic URDF the ``ros2:`` backend reads by default,
+with Techman's ROS joint names :data:`JOINT_NAMES_ROS`) are built from the same table and
+the tests check that all agree. Frames: the
 base frame sits at the bottom of the base, z up; the tool centre point (TCP) lies
 :data:`TOOL_LENGTH` along the flange's z axis, between the gripper's fingertips.
 """
@@ -18,7 +20,9 @@ from wovenskin.robots.dh import (
     DHLink,
     chain_frames,
     chain_jacobian,
+    urdf_from_dh,
 )
+from wovenskin.robots.urdf import UrdfChain, load_urdf_chain
 
 if TYPE_CHECKING:
     import mujoco
@@ -40,7 +44,13 @@ JOINT_LIMITS = JointLimits(
     max_speed=np.deg2rad([180.0, 180.0, 180.0, 225.0, 225.0, 225.0]),
 )
 
-JOINT_NAMES = ("joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
+JOINT_NAMES = ("joint1", "joint2", "joint3", "joint4", "joint5", "joint6")  # MuJoCo's
+JOINT_NAMES_ROS = ("joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6")
+"""The joints' names on ROS: Techman's, as in its ``tmr_ros2`` driver and ``tm_description``."""
+
+JOINT_EFFORT = (157.0, 157.0, 157.0, 43.0, 43.0, 43.0)
+"""N m, the effort limits of Techman's ``tm_description`` URDF (the URDF spec requires one;
+wovenskin does not use them)."""
 
 HOME_Q = np.zeros(N_JOINTS)  # all joints at zero: the arm stands upright
 INITIAL_Q = np.deg2rad([0.0, 0.0, 90.0, 0.0, 90.0, 0.0])  # TCP 0.52 m in front, tool down
@@ -110,3 +120,29 @@ def load_model() -> mujoco.MjModel:
     path = resources.files("wovenskin.robots.sim").joinpath(MODEL_FILE)
     with resources.as_file(path) as file:
         return mujoco.MjModel.from_xml_path(str(file))
+
+
+URDF_FILE = "tm5_900.urdf"
+"""The packaged kinematic URDF of the arm, in ``wovenskin.robots.sim``: :func:`urdf_from_table`'s
+text (a test keeps them equal). Links ``base``, ``link_1``..``link_6``, ``flange`` and
+``tcp``."""
+URDF_BASE, URDF_FLANGE, URDF_TIP = "base", "flange", "tcp"
+
+
+def urdf_from_table() -> str:
+    """The URDF written from :data:`DH`, :data:`JOINT_LIMITS` and :data:`TOOL_LENGTH`; to
+    regenerate the packaged file: ``python -c "from wovenskin.robots.sim import tm5_900;
+    print(tm5_900.urdf_from_table(), end='')" > wovenskin/robots/sim/tm5_900.urdf``."""
+    return urdf_from_dh(
+        "tm5_900", DH, JOINT_LIMITS, JOINT_NAMES_ROS, tool_transform(), URDF_TIP, JOINT_EFFORT
+    )
+
+
+def urdf_text() -> str:
+    """The packaged URDF of the TM5-900 (:data:`URDF_FILE`)."""
+    return resources.files("wovenskin.robots.sim").joinpath(URDF_FILE).read_text("utf-8")
+
+
+def urdf_chain() -> UrdfChain:
+    """The packaged URDF's chain from ``base`` to ``tcp``."""
+    return load_urdf_chain(urdf_text(), URDF_BASE, URDF_TIP)
