@@ -221,6 +221,24 @@ def bench_adapt(
     show_bench(result, json_out)
 
 
+@bench_app.command("ros2")
+@user_errors
+def bench_ros2(
+    seconds: float = typer.Option(30.0, help="Length of the simulated stream replayed."),
+    out: Path = typer.Option(Path("runs/bench/ros2"), help="Folder for logs and recordings."),
+    json_out: bool = JSON_OUT,
+) -> None:
+    """Replay a labelled stream through run --robot ros2: against a stand-in MoveIt Servo in
+    another process (loopback only): every twist on the wire, lift-offs, joint-state loss."""
+    from wovenskin.bench.ros2 import run_ros2_benchmark
+
+    with err_console.status("bench ros2...") as status:
+        result = run_ros2_benchmark(
+            out, seconds, progress=lambda what: status.update(f"bench ros2: {what}")
+        )
+    show_bench(result, json_out)
+
+
 @bench_app.command("model")
 @user_errors
 def bench_model(

@@ -73,7 +73,7 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
     session wraps in its own :class:`SafetyLayer`.  ``trace`` gets a line per tick;
     ``recorder`` (the :class:`~wovenskin.recording.native.RecordingWriter` also given to
     the ``LiveSkin``) gets predictions, commands, robot state, stops and errors as
-    annotations.  ``on_tick(session)`` runs after every tick (benchmarks).
+    annotations.  ``on_tick(session)`` runs after every tick (frames: ``tick_block``).
     """
 
     def __init__(
@@ -133,6 +133,7 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self.speed_scale = 1.0  # set_speed_scale: fraction of the mapping's speeds
         self.recording_context: dict[str, Any] = {}  # what start_recording writes as settings
         self.last_block_compute_s = 0.0  # recogniser + control + robot for the last block
+        self.tick_block: Any = None  # the LiveBlock whose frames are being ticked
         self._steps_through_safety = type(self.safety).step is not Robot.step
         self._init_inputs(inputs)
 
@@ -353,6 +354,7 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
             ended = self.pipeline.reset(float(times[0]))
             changes = [] if ended is None else [ended]
         self._record_predictions(float(times[-1]))
+        self.tick_block = block
         self._tick_frames(times, deque(sorted(changes, key=lambda c: c.t)))
         return len(times)
 

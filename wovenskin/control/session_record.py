@@ -90,5 +90,6 @@ class SessionRecording:
             "tcp_speed": robot.tcp_speed,
             "twist_command": np.asarray(self.state.twist, dtype=np.float64),
             "gesture": self.state.gesture,
+            "robot_t": float(robot.t),  # the backend's clock: ties stream time to the arm's
         }
         self.recorder.add_annotation("robot", t, payload)

@@ -9,8 +9,9 @@ ROS 2 matches) are checked against the independent serialiser of ``rosbags`` in 
 message by message and field by field.
 
 Class attributes without annotations (``ros_name``, a message's constants) are not fields.
-``uint8[]`` fields are :class:`bytes` here: on the wire a ``sequence<octet>`` is the same
-length-prefixed run of bytes, and Python handles it without a loop.
+``uint8[]`` fields are ``sequence[uint8]``, as rosidl declares them (Cyclone's type builder
+has no type object for a plain ``bytes`` field, so a topic of such a type cannot be made);
+they take :class:`bytes` when sent and come back as lists of ints when received.
 
 Services on ``rmw_cyclonedds`` put a request header (the client's 8-byte GUID prefix hash
 and a sequence number) before the request's fields and before the reply's: the service
@@ -159,7 +160,7 @@ class Image(IdlStruct, typename="sensor_msgs::msg::dds_::Image_"):
     encoding: str = ""
     is_bigendian: uint8 = 0
     step: uint32 = 0
-    data: bytes = b""
+    data: sequence[uint8] = b""
 
 
 @dataclass
@@ -188,7 +189,7 @@ class PointCloud2(IdlStruct, typename="sensor_msgs::msg::dds_::PointCloud2_"):
     is_bigendian: bool = False
     point_step: uint32 = 0
     row_step: uint32 = 0
-    data: bytes = b""
+    data: sequence[uint8] = b""
     is_dense: bool = False
 
 

@@ -145,6 +145,23 @@ class Subscription:
         self._reader = reader
         self.message_type = message_type
         self.ros_name = ros_name
+        self._waitset: Any = None
+
+    def wait(self, timeout_s: float) -> bool:
+        """Block until a message not yet taken is there (True) or ``timeout_s`` passes."""
+        if self._waitset is None:
+            from cyclonedds.core import (
+                InstanceState,
+                ReadCondition,
+                SampleState,
+                ViewState,
+                WaitSet,
+            )
+
+            self._waitset = WaitSet(self._reader.participant)
+            mask = ViewState.Any | InstanceState.Any | SampleState.NotRead
+            self._waitset.attach(ReadCondition(self._reader, mask))
+        return self._waitset.wait(max(1, int(timeout_s * 1e9))) > 0
 
     def matched(self) -> int:
         """How many writers (ROS 2 publishers) this reader has matched."""

@@ -8,9 +8,9 @@ It is not Servo; it does what wovenskin relies on Servo and the arm's driver for
 - twists on the twist topic (``geometry_msgs/msg/TwistStamped``) in the chain's base frame
   or any link of the chain, dropped as stale when their stamp is older than
   ``incoming_command_timeout`` against the system clock (Servo's rule);
-- every cycle the joints move by damped least squares, ``dq = J^T (J J^T + l^2 I)^-1 v``,
-  capped at the URDF's joint speeds, and ``sensor_msgs/msg/JointState`` goes out (the job
-  of a driver's ``joint_state_broadcaster``).
+- a receiver thread takes each twist as it arrives; every cycle the joints move by damped
+  least squares, ``dq = J^T (J J^T + l^2 I)^-1 v``, capped at the URDF's joint speeds,
+  and ``sensor_msgs/msg/JointState`` goes out (a driver's ``joint_state_broadcaster``).
 
 Every twist received is logged as one JSON line with its CDR bytes, the receiver's clocks
 and the integrated joints, so a test can decode it with an independent serialiser and
@@ -21,6 +21,7 @@ first moving twist (the arm goes on following twists) to test what the client do
 from __future__ import annotations
 
 import json
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -85,10 +86,20 @@ class StandinServo:
         self._moving_since: float | None = None
         self.silenced_at_ns: int | None = None
         self.received = 0
+        self._lock = threading.Lock()  # the receiver thread and the cycle share the command
+        self._closing = threading.Event()
 
     def _write(self, record: dict[str, Any]) -> None:
         if self._log is not None:
-            self._log.write(json.dumps(record) + "\n")
+            with self._lock:
+                self._log.write(json.dumps(record) + "\n")
+
+    def _receive(self) -> None:
+        """The receiver thread: each twist is taken (and timed) the moment it arrives."""
+        while not self._closing.is_set():
+            if self._twists.wait(0.05):
+                for data, _source_ns in self._twists.take_serialized():
+                    self._received(data)
 
     def run(self, seconds: float | None = None) -> None:
         """Serve every ``1 / rate_hz`` s until ``seconds`` pass (None: until interrupted)."""
@@ -96,12 +107,16 @@ class StandinServo:
         start = time.monotonic()
         self._write({"event": "start", "wall_ns": now_ns(), "mono_ns": time.monotonic_ns()})
         next_t = start
+        receiver = threading.Thread(target=self._receive, name="standin-twists", daemon=True)
+        receiver.start()
         try:
             while seconds is None or time.monotonic() - start < seconds:
                 next_t += period
                 self.cycle(period)
                 time.sleep(max(0.0, next_t - time.monotonic()))
         finally:
+            self._closing.set()
+            receiver.join(timeout=1.0)
             self._write({"event": "end", "wall_ns": now_ns(), "q": self.q.tolist()})
             if self._log is not None:
                 self._log.flush()
@@ -109,8 +124,6 @@ class StandinServo:
     def cycle(self, dt: float) -> None:
         """One cycle: answer the service, take twists, move the arm, publish its joints."""
         servo_service.serve_requests(self._requests, self._replies, self._switch)
-        for data, _source_ns in self._twists.take_serialized():
-            self._received(data)
         twist = self._fresh_twist()
         self._integrate(twist, dt)
         if twist is not None and np.any(twist) and self._moving_since is None:
@@ -139,7 +152,8 @@ class StandinServo:
         linear, angular = message.twist.linear, message.twist.angular
         twist = np.array([linear.x, linear.y, linear.z, angular.x, angular.y, angular.z])
         stamp = join_ns(message.header.stamp.sec, message.header.stamp.nanosec)
-        self._command = (twist, stamp, message.header.frame_id)
+        with self._lock:
+            self._command = (twist, stamp, message.header.frame_id)
         self._write(
             {
                 "event": "twist",
@@ -156,9 +170,11 @@ class StandinServo:
 
     def _fresh_twist(self) -> np.ndarray | None:
         """The latest twist in the base frame, if Servo would follow it now."""
-        if self._command is None or not self.twist_mode:
+        with self._lock:
+            command = self._command
+        if command is None or not self.twist_mode:
             return None
-        twist, stamp, frame = self._command
+        twist, stamp, frame = command
         if (now_ns() - stamp) * 1e-9 > self.settings.incoming_command_timeout_s:
             return None
         if frame == self.chain.base_link:
