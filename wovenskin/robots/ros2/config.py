@@ -33,9 +33,10 @@ def ros_name(value: object) -> str:
 
 
 def servo_node(value: object) -> str:
-    """A Servo node's fully qualified name, or empty (do not call its service)."""
+    """A Servo node's fully qualified name, or ``none`` (do not call its service: Servo
+    on another RMW, or already taking twists), kept as empty."""
     text = str(value).strip()
-    return ros_name(text) if text else ""
+    return "" if text.lower() in ("", "none") else ros_name(text)
 
 
 def seconds(value: object) -> float:
@@ -51,7 +52,7 @@ class Ros2Options(RobotOptions):
     """``twist``, ``joints``: topics; ``frame``: the twists' frame_id (default: ``base``);
     ``urdf``, ``base``, ``tip``: the arm's chain (default: the TM5-900's, ``base`` to
     ``tcp``); ``domain``: the ROS domain id; ``servo``: the Servo node whose
-    ``~/switch_command_type`` is called on connect (empty: none); ``joint_timeout``: the
+    ``~/switch_command_type`` is called on connect (``none``: no call); ``joint_timeout``: the
     longest silence of the joint states before the arm is stopped, s."""
 
     twist: Annotated[str, BeforeValidator(ros_name)] = DEFAULTS.twist_topic

@@ -44,7 +44,7 @@ def switch_to_twist(node: Any, servo: str, timeout_s: float) -> None:
         if time.monotonic() > deadline:
             raise ServiceError(
                 f"MoveIt Servo's {service} service is not there (waited {timeout_s:g} s): is "
-                "Servo running, on rmw_cyclonedds_cpp? (servo= names the node; servo= empty "
+                "Servo running, on rmw_cyclonedds_cpp? (servo= names the node; servo=none "
                 "skips the call)"
             )
         time.sleep(DISCOVERY_POLL_S)

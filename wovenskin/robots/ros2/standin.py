@@ -110,7 +110,9 @@ class StandinServo:
         receiver = threading.Thread(target=self._receive, name="standin-twists", daemon=True)
         receiver.start()
         try:
-            while seconds is None or time.monotonic() - start < seconds:
+            while not self._closing.is_set() and (
+                seconds is None or time.monotonic() - start < seconds
+            ):
                 next_t += period
                 self.cycle(period)
                 time.sleep(max(0.0, next_t - time.monotonic()))
@@ -209,6 +211,10 @@ class StandinServo:
                 effort=[],
             )
         )
+
+    def stop(self) -> None:
+        """End :meth:`run` (from another thread) after its current cycle."""
+        self._closing.set()
 
     def close(self) -> None:
         self.node.close()
