@@ -217,6 +217,28 @@ def test_the_capabilities_leave_collisions_and_singularities_to_servo():
     assert caps.kinematics is not None and caps.scene is not None
     assert caps.release_stop_s is not None and caps.release_stop_s < 0.005
     assert caps.stop_time_s is None and caps.stop_deceleration is None  # Servo's own setting
+    assert any("collision" in line for line in caps.left_to_controller)
+    assert any("singularit" in line for line in caps.left_to_controller)
     q = tm5_900.INITIAL_Q
     assert np.allclose(caps.kinematics.forward(q), tm5_900.forward_kinematics(q))
     assert arm.joint_limits().lower == pytest.approx(tm5_900.JOINT_LIMITS.lower)
+
+
+def test_cyclone_dds_takes_its_configuration_from_cyclonedds_uri(
+    monkeypatch, tmp_path, ros2_domain
+):
+    from wovenskin.ros2.node import Ros2Error, Ros2Node
+
+    config = tmp_path / "one-interface.xml"
+    config.write_text(
+        '<CycloneDDS xmlns="https://cdds.io/config"><Domain Id="any"><General><Interfaces>'
+        '<NetworkInterface name="no_such_interface0" /></Interfaces></General></Domain>'
+        "</CycloneDDS>"
+    )
+    monkeypatch.setenv("CYCLONEDDS_URI", config.as_uri())
+    with pytest.raises(Ros2Error, match="CYCLONEDDS_URI") as info:
+        Ros2Node(231)  # a domain no other test uses: its configuration is read now
+    assert "\n" not in str(info.value)
+    arm = make_robot("ros2:?domain=231")
+    with pytest.raises(RobotError, match="cannot join ROS 2 domain 231"):
+        arm.connect()

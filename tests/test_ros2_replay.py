@@ -32,6 +32,7 @@ def stream(tmp_path_factory):
 def test_every_twist_on_the_wire_is_what_the_session_meant(stream, tmp_path, ros2_domain):
     log, record, run = replay_through_ros2(stream, tmp_path, ros2_domain)
     assert run.returncode == 0, run.stderr
+    assert "left to the arm's controller: collision checking" in run.stderr
     report = wire_report(log, read_recording(record), tm5_900.urdf_chain(), ActionMapping.load())
     assert report.twists > 100
     assert report.decoded == report.twists  # rosbags reads every one as TwistStamped

@@ -157,6 +157,8 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
     def start(self) -> None:
         """Connect the robot (``RobotError`` if it is not there) and start the skin."""
         self.safety.connect()
+        for check in self.safety.capabilities().left_to_controller:
+            self._message(f"robot {self.robot.name}: left to the arm's controller: {check}")
         self._started_wall = self._wall()
         try:
             self.state.robot = self.safety.state()

@@ -216,6 +216,9 @@ class RobotCapabilities:
       time, so the zero twist of a lift-off goes out on the next tick instead of being
       ramped twice.
     - ``how_to_complete``: one line telling the user how to supply what is missing.
+    - ``left_to_controller``: the checks wovenskin does not make on this arm because its
+      own controller makes them (MoveIt Servo's collision checking, say), one line each;
+      the session says them when it starts.
     - ``gripper``: whether :meth:`Robot.set_gripper` drives a gripper on this arm.
 
     Joint limits are not here: every backend must give them (:meth:`Robot.joint_limits`).
@@ -230,6 +233,7 @@ class RobotCapabilities:
     tracking_error: float = 0.0
     release_stop_s: float | None = None
     how_to_complete: str = ""
+    left_to_controller: tuple[str, ...] = ()
     gripper: bool = False
 
     def __post_init__(self) -> None:

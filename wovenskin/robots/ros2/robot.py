@@ -63,6 +63,10 @@ MAX_POSE_SPEED = 0.25  # m/s, the fastest move_to_pose streamed
 POSE_ANGULAR_SPEED = 0.5  # rad/s, the fastest turn of a streamed pose move
 TRACKING_ERROR = 0.05  # assumed allowance for Servo's smoothing (not measured on a real arm)
 RELEASE_STOP_S = 0.001  # Servo smooths a step to zero itself: send it on the lift-off's tick
+LEFT_TO_SERVO = (
+    "collision checking (MoveIt Servo's check_collisions, against its planning scene)",
+    "singularity handling (MoveIt Servo's lower/hard_stop_singularity_threshold)",
+)
 
 
 class Ros2Robot(Robot):
@@ -247,7 +251,8 @@ class Ros2Robot(Robot):
         """The URDF's kinematics (the safety layer's full checks run), the TM5-900's
         drawing when the URDF is the packaged one, an assumed tracking allowance for
         Servo's smoothing, and a release brake of one tick: Servo's smoothing filter
-        ramps the zero twist of a lift-off, so it goes out at once. No stop profile is
+        ramps the zero twist of a lift-off, so it goes out at once. Collisions and
+        singularities are declared left to Servo (the session says so). No stop profile is
         declared: Servo's deceleration is its own setting, so the safety layer assumes its
         conservative stop time."""
         return RobotCapabilities(
@@ -256,6 +261,7 @@ class Ros2Robot(Robot):
             control_period_s=WATCH_PERIOD_S,
             tracking_error=TRACKING_ERROR,
             release_stop_s=RELEASE_STOP_S,
+            left_to_controller=LEFT_TO_SERVO,
             how_to_complete="give the arm's URDF in the robot spec (ros2:?urdf=PATH&tip=LINK)",
         )
 
