@@ -134,8 +134,9 @@ def test_a_stalled_control_loop_gets_a_zero_twist(standin, ros2_domain):
     servo = standin()
     with robot(ros2_domain) as arm:
         arm.send_twist(np.array([0.0, 0.0, 0.01, 0, 0, 0]))
-        wait_until(lambda: len(servo.records("twist")) >= 2, timeout=2.0)  # the watchdog's zero
-        assert not any(servo.records("twist")[-1]["twist"])
+        wait_until(lambda: servo.records("twist"))
+        wait_until(lambda: not any(servo.records("twist")[-1]["twist"]))  # the watchdog's zero
+        assert any(servo.records("twist")[0]["twist"])
 
 
 def test_joint_and_pose_moves_are_streamed_to_their_targets(standin, ros2_domain):
@@ -242,3 +243,15 @@ def test_cyclone_dds_takes_its_configuration_from_cyclonedds_uri(
     arm = make_robot("ros2:?domain=231")
     with pytest.raises(RobotError, match="cannot join ROS 2 domain 231"):
         arm.connect()
+
+
+def test_twists_go_out_in_the_mappings_frame_unless_the_spec_names_one():
+    arm = make_robot("ros2")
+    assert arm.frame == "base"
+    arm.use_mapping_frame("tool")
+    assert arm.frame == "tcp"  # the tip: Servo's end-effector frame
+    arm.use_mapping_frame("base")
+    assert arm.frame == "base"
+    named = make_robot("ros2:?frame=flange")
+    named.use_mapping_frame("tool")
+    assert named.frame == "flange"

@@ -100,6 +100,7 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self.settings = settings or SessionSettings()
         self.poses = poses
         self.safety = SafetyLayer(robot, limits, clock=self._clock)
+        robot.use_mapping_frame(self.mapping.settings.frame)
         release = self.safety.capabilities().release_stop_s  # the arm may ramp stops itself
         self.shaper = TwistShaper(self.mapping.settings, release or RELEASE_STOP_S)
         self.gesture_motion = GestureMotion(self.mapping)

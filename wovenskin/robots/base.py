@@ -334,6 +334,11 @@ class Robot(abc.ABC):
     def step(self, dt: float) -> None:  # noqa: B027 - optional hook, no-op for real arms
         """Advance a simulated arm by ``dt`` seconds; real arms move on their own."""
 
+    def use_mapping_frame(self, frame: str) -> None:  # noqa: B027 - optional hook
+        """The action mapping thinks in ``frame`` (``tool``, ``base`` or ``skin``). Twists
+        still arrive in the base frame; a backend that passes them on in a frame of its
+        choosing (a ROS 2 ``frame_id``) may express them in the mapping's."""
+
     def __enter__(self) -> Robot:
         self.connect()
         return self

@@ -49,7 +49,8 @@ def seconds(value: object) -> float:
 
 @dataclass(frozen=True)
 class Ros2Options(RobotOptions):
-    """``twist``, ``joints``: topics; ``frame``: the twists' frame_id (default: ``base``);
+    """``twist``, ``joints``: topics; ``frame``: the twists' frame_id (default: the mapping's
+    frame, the ``tip`` for a tool-frame mapping, the ``base`` for a base-frame one);
     ``urdf``, ``base``, ``tip``: the arm's chain (default: the TM5-900's, ``base`` to
     ``tcp``); ``domain``: the ROS domain id; ``servo``: the Servo node whose
     ``~/switch_command_type`` is called on connect (``none``: no call); ``joint_timeout``: the

@@ -1,9 +1,10 @@
 """Ros2Robot: an arm under MoveIt Servo, driven over ROS 2 with no ROS install.
 
 Twists go out as ``geometry_msgs/msg/TwistStamped`` on Servo's twist topic (default
-``/servo_node/delta_twist_cmds``), one per control tick, stamped with the system clock and
-expressed in ``frame`` (the URDF's base link by default; any link of the chain, the tip
-included, turns the base-frame twist into that link's axes at the current joint angles).
+``/servo_node/delta_twist_cmds``), one per control tick while the arm is commanded to move
+and one zero twist when it stops, stamped with the system clock and expressed in ``frame``:
+any link of the chain, whose axes at the current joint angles the base-frame twist is
+turned into (default: the mapping's frame, the tip for a tool-frame mapping, else the base).
 Joint angles come in as ``sensor_msgs/msg/JointState`` (default ``/joint_states``), matched
 by name to the chain's joints; the tool centre point's pose, its Jacobian and the joint
 limits come from the arm's URDF (default: the TM5-900's, with Techman's ROS joint names).
@@ -105,6 +106,12 @@ class Ros2Robot(Robot):
         self._move_error: str | None = None
         self._fault: str | None = None
         self.published = 0  # twists sent, zero twists included
+
+    def use_mapping_frame(self, frame: str) -> None:
+        """Without ``frame=`` in the spec, twists go out in the mapping's frame: the tip's
+        axes for a tool- or skin-frame mapping (Servo's end-effector frame), else the base's."""
+        if self.settings.frame is None:
+            self.frame = self.chain.base_link if frame == "base" else self.chain.tip_link
 
     # -- connection -------------------------------------------------------------------
 

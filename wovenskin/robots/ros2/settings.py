@@ -12,7 +12,7 @@ class Ros2Settings:
 
     twist_topic: str = "/servo_node/delta_twist_cmds"
     joints_topic: str = "/joint_states"
-    frame: str | None = None  # the twists' frame_id; None: the chain's base link
+    frame: str | None = None  # the twists' frame_id; None: the mapping's (tip or base link)
     domain: int | None = None  # None: ROS_DOMAIN_ID, else 0
     servo: str = "/servo_node"  # whose ~/switch_command_type to call; "": do not
     joint_timeout_s: float = 0.1
