@@ -68,6 +68,11 @@ def run(
     mapping: Path = typer.Option(None, help="Action mapping TOML (default: the packaged one)."),
     poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
     overwrite: bool = typer.Option(False, help="Replace existing --trace / --record files."),
+    ros2_publish: str = typer.Option(
+        None,
+        help="Publish the skin on ROS 2 (docs/ros2.md): 'on', or rates in Hz and more, e.g. "
+        "frames=50,contacts=20,gesture=20,probabilities=0,ns=/wovenskin,domain=0.",
+    ),
 ) -> None:
     """Drive a robot with gestures: skin, recogniser, mapping, safety and robot in one loop.
 
@@ -88,29 +93,35 @@ def run(
         raise ConfigError("--trace - (stdout) needs --headless")
     if seconds is not None and not seconds > 0:
         raise ConfigError(f"--seconds must be positive, got {seconds}")
+    topics = _ros2_topics(ros2_publish)
     if view == "dashboard":
         _run_dashboard(
             skin, robot, model, host=host, port=port, token=token, open_browser=open_browser,
             ui_rate=ui_rate, trace=trace, record=record, seconds=seconds, mapping=mapping,
             poses=poses, overwrite=overwrite, task=task, interface=input_kind, study=study,
+            topics=topics,
         )  # fmt: skip
         return
     if study is not None:
         raise ConfigError("--study runs trials from the dashboard's study panel: use --view web")
-    writer = TraceWriter(trace, overwrite=overwrite) if trace else None
 
     def report(message: str) -> None:
         if headless:
             err_console.print(escape(message), highlight=False, soft_wrap=True)
 
+    publisher = _skin_publisher(topics, report)
+    writer = TraceWriter(trace, overwrite=overwrite) if trace else None
     try:
         session = open_session(
             skin, robot, model, fast_replay=headless, mapping=mapping, poses=poses,
             trace=writer, record=record, overwrite=overwrite, on_message=report, task=task,
+            on_tick=publisher.on_tick if publisher is not None else None,
         )  # fmt: skip
     except BaseException:
         if writer is not None:
             writer.close()
+        if publisher is not None:
+            publisher.close()
         raise
     try:
         if headless:
@@ -130,7 +141,11 @@ def run(
             result = run_with_view(session, console, seconds, title=title, keyboard=keyboard)
     finally:
         session.close()
+        if publisher is not None:
+            publisher.close()
     out.print(result.summary(), highlight=False, soft_wrap=True)
+    if publisher is not None:
+        out.print(publisher.summary(), highlight=False, soft_wrap=True)
     if writer is not None and writer.path is not None:
         out.print(f"trace: {writer.lines} lines in {writer.path}", highlight=False)
     if record is not None:
@@ -138,6 +153,28 @@ def run(
 
 
 INPUTS = ("skin", "keyboard", "pendant")
+
+
+def _ros2_topics(value: str | None):
+    """The ``--ros2-publish`` settings (None: off); a bad value or no ``cyclonedds`` is one
+    line, before anything is opened."""
+    from wovenskin.runtime.ros2_settings import parse_ros2_publish, require_cyclonedds
+
+    topics = parse_ros2_publish(value)
+    if topics is not None:
+        require_cyclonedds()
+    return topics
+
+
+def _skin_publisher(topics, report):
+    """A :class:`~wovenskin.runtime.ros2_publish.SkinPublisher` for ``topics`` (None: none)."""
+    if topics is None:
+        return None
+    from wovenskin.runtime.ros2_publish import SkinPublisher
+
+    publisher = SkinPublisher(topics, on_message=report)
+    report(f"publishing the skin on {topics.describe()}")
+    return publisher
 
 
 def _view_and_skin(
@@ -181,6 +218,7 @@ def _run_dashboard(
     open_browser: bool, ui_rate: float, trace: str | None, record: Path | None,
     seconds: float | None, mapping: Path | None, poses: Path | None, overwrite: bool,
     task: str | None = None, interface: str = "skin", study: Path | None = None,
+    topics=None,
 ) -> None:  # fmt: skip
     """``wovenskin run`` with the web dashboard (see :mod:`wovenskin.ui.dashboard`)."""
     import socket
@@ -211,6 +249,7 @@ def _run_dashboard(
         return open_session(
             skin_spec, robot_spec, model, mapping=mapping, poses=poses, trace=writer,
             record=recording, overwrite=overwrite, task=task,
+            on_tick=publisher.on_tick if publisher is not None else None,
         )  # fmt: skip
 
     chosen = {"task": task} if task is not None else {}  # the dashboard's task selector
@@ -226,9 +265,16 @@ def _run_dashboard(
         if open_browser and _has_desktop():
             webbrowser.open(url)
 
-    serve(runner, host, port, token if needs_token(host) else token, on_ready=ready,
-          seconds=seconds)  # fmt: skip
+    publisher = _skin_publisher(topics, lambda line: console.print(escape(line)))
+    try:
+        serve(runner, host, port, token if needs_token(host) else token, on_ready=ready,
+              seconds=seconds)  # fmt: skip
+    finally:
+        if publisher is not None:
+            publisher.close()
     console.print("dashboard closed; the robot was stopped and disconnected", highlight=False)
+    if publisher is not None:
+        console.print(publisher.summary(), highlight=False, soft_wrap=True)
 
 
 @pose_app.command("set")

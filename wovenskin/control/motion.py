@@ -35,8 +35,11 @@ class TwistShaper:
     """Jerk- and acceleration-limited tracking of a target twist (see the module docstring)."""
 
     def __init__(
-        self, settings: MotionSettings | None = None, release_stop_s: float = RELEASE_STOP_S
+        self, settings: MotionSettings | None = None, release_stop_s: float | None = None
     ) -> None:
+        """``release_stop_s``: the release brake's longest stop (None: :data:`RELEASE_STOP_S`;
+        an arm that ramps its own stops declares less, see ``RobotCapabilities``)."""
+        release_stop_s = RELEASE_STOP_S if release_stop_s is None else release_stop_s
         if not (math.isfinite(release_stop_s) and release_stop_s > 0.0):
             raise ValueError(f"release_stop_s must be a positive number, got {release_stop_s!r}")
         self.settings = settings or MotionSettings()

@@ -14,16 +14,15 @@ watchdog and reports its true state; the trace gets a line per idle step during 
 One robot step covers at most ``SessionSettings.max_robot_step_s`` (a jump in the skin's
 timestamps is cut, with a message).  Pose actions start a joint move to the stored pose
 (:class:`PoseStore`) and, when hold-to-run, stop as soon as the command ends.  Inputs beside
-the skin (keyboard, teach pendant: :mod:`wovenskin.control.session_inputs`) are polled
-every tick and take the same path; the session counts and logs every command.
+the skin (keyboard, pendant: :mod:`~wovenskin.control.session_inputs`) are polled every tick
+and take the same path; the session counts and logs every command.
 
 Safety: every skin frame is a skin heartbeat and every tick a command heartbeat; the
-layer's watchdogs run on the session clock, which is the skin clock while frames arrive
-and advances with the wall clock while they do not, so a gap in a replayed stream and a
-stalled live skin both stop the robot.  :meth:`ControlSession.emergency_stop` (the stop
-key) latches until :meth:`ControlSession.resume`; watchdog stops clear by themselves once
-the skin streams again and no command is active.  Bad skin blocks and robot errors are
-reported as one line and never move the robot.
+layer's watchdogs run on the session clock, which is the skin clock while frames arrive and
+advances with the wall clock while they do not, so a gap in a replayed stream and a stalled
+live skin both stop the robot.  :meth:`ControlSession.emergency_stop` (the stop key) latches
+until :meth:`ControlSession.resume`; watchdog stops clear once the skin streams again and no
+command is active.  Bad blocks and robot errors are one line and never move the robot.
 """
 
 from __future__ import annotations
@@ -38,7 +37,7 @@ import numpy as np
 
 from wovenskin.control.gesture_motion import GestureMotion
 from wovenskin.control.mapping import ActionMapping, PoseAction, TwistAction
-from wovenskin.control.motion import RELEASE_STOP_S, TwistShaper
+from wovenskin.control.motion import TwistShaper
 from wovenskin.control.poses import PoseStore
 from wovenskin.control.safety import SafetyLayer
 from wovenskin.control.safety_limits import SafetyLimits
@@ -101,8 +100,7 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self.poses = poses
         self.safety = SafetyLayer(robot, limits, clock=self._clock)
         robot.use_mapping_frame(self.mapping.settings.frame)
-        release = self.safety.capabilities().release_stop_s  # the arm may ramp stops itself
-        self.shaper = TwistShaper(self.mapping.settings, release or RELEASE_STOP_S)
+        self.shaper = TwistShaper(self.mapping.settings, self.safety.capabilities().release_stop_s)
         self.gesture_motion = GestureMotion(self.mapping)
         self.trace = trace
         self.recorder = recorder

@@ -11,8 +11,9 @@ on_tick=publisher.on_tick)``) and publishes, under its namespace (default ``/wov
   (:class:`~wovenskin.signal.contacts.Contact`), float32 fields ``x``, ``y``, ``z`` in
   metres on the skin plane, then ``row``, ``col`` (channel units), ``size`` (channels),
   ``peak`` and ``strength``; ``x`` to the right and ``y`` down from the top-left corner of
-  the sensing area (:meth:`~wovenskin.skin.layout.SkinLayout.rc_to_mm`), ``z`` = 0, so
-  ``z`` points into the skin, away from the user; an empty cloud when nothing touches;
+  the sensing area (:meth:`~wovenskin.skin.layout.SkinLayout.rc_to_mm`), ``z`` = 0 (in a
+  right-handed frame the ``z`` axis points into the skin, away from the user); an empty
+  cloud when nothing touches;
 - ``gesture`` (``std_msgs/msg/String``): the active gesture, ``""`` when none, at its rate
   and on every change;
 - ``probabilities`` (``std_msgs/msg/Float32MultiArray``): the recogniser's newest class
@@ -23,8 +24,9 @@ Every message is stamped with the system clock when it is sent; the frames and c
 carry ``header.frame_id`` ``wovenskin_skin``.  Rates count on the skin's stream clock (the
 tick's time), not the wall clock, so a replay played as fast as possible publishes the same
 frames as in real time.  The streams are best effort (:data:`~wovenskin.ros2.node.SENSOR_DATA`).
-Publishing runs in the control thread, in tens of microseconds per tick (docs/ros2.md gives
-the figures); it never breaks the loop: the first DDS error is reported as one line and
+Publishing runs in the control thread after each tick, about 0.05-0.2 ms per tick on
+average at the default rates (docs/ros2.md gives the figures; :class:`PublishStats` measures
+every run); it never breaks the loop: the first DDS error is reported as one line and
 publishing stops.
 """
 
@@ -44,17 +46,18 @@ from wovenskin.runtime.ros2_settings import FRAME_ID, RATE_KEYS, TOPICS, SkinTop
 
 POINT_FIELDS = ("x", "y", "z", "row", "col", "size", "peak", "strength")
 POINT_DTYPE = np.dtype([(name, "<f4") for name in POINT_FIELDS])
-EARLY_FRACTION = 0.1  # a tick this fraction of a period before its due time is on time
 
 
 class RateGate:
     """When a topic is due on the stream clock: every ``1 / rate_hz`` s from the first
-    tick (a tick up to a tenth of a period early counts, so a 200 Hz skin published at
-    100 Hz gives exactly every second frame); after a gap it starts again from the tick
-    (no burst), and a clock that goes back (a new session, a looped replay) starts over."""
+    tick.  A tick up to ``early_s`` before its due time counts (the publisher gives half a
+    frame interval, so a 200 Hz skin published at 100 Hz gives exactly every second frame
+    whatever the rounding of its times); after a gap it starts again from the tick (no
+    burst), and a clock that goes back (a new session, a looped replay) starts over."""
 
-    def __init__(self, rate_hz: float) -> None:
+    def __init__(self, rate_hz: float, early_s: float = 0.0) -> None:
         self.period = 1.0 / rate_hz if rate_hz > 0 else 0.0
+        self.early_s = min(max(0.0, early_s), 0.5 * self.period)
         self._next: float | None = None
         self._last = -np.inf
 
@@ -64,15 +67,12 @@ class RateGate:
         if self._next is None or t < self._last:
             self._next = t
         self._last = t
-        if t < self._next - EARLY_FRACTION * self.period:
+        if t < self._next - self.early_s:
             return False
         self._next += self.period
         if self._next <= t:
             self._next = t + self.period
         return True
-
-    def restart(self) -> None:
-        self._next = None
 
 
 @dataclass
@@ -196,7 +196,7 @@ class SkinPublisher:
         except BaseException:
             self.close()
             raise
-        self._gates = {name: RateGate(self.settings.rate(name)) for name in RATE_KEYS}
+        self._gates: dict[str, RateGate] = {}
         self.stats = PublishStats()
         self.failure = ""
         self._session: Any = None
@@ -238,8 +238,8 @@ class SkinPublisher:
             self._session = session
             self._gesture = None
             self._class_names = None
-            for gate in self._gates.values():
-                gate.restart()
+            early = 0.5 / float(session.live_skin.info.sample_rate_hz)  # half a frame
+            self._gates = {name: RateGate(self.settings.rate(name), early) for name in RATE_KEYS}
         state = session.state
         t = float(state.t)
         due = {name: gate.due(t) for name, gate in self._gates.items()}
