@@ -19,18 +19,16 @@ import base64
 import binascii
 import json
 import math
-import re
 from typing import Any
 
 import numpy as np
 
 from wovenskin.io import to_jsonable
+from wovenskin.recording.documents import array_spec
 from wovenskin.recording.native import Annotation, RecordedLabel
 from wovenskin.recording.untrusted import loads_json
 
 ARRAY_KEY = "__ndarray__"
-_DTYPE = re.compile(r"[<>|=]?[biuf][1-9][0-9]?")  # plain numeric or boolean dtypes
-_MAX_DIMS = 32
 _RESERVED_EXTRA = frozenset({"self", "label", "start_s", "end_s", "kind"})
 
 
@@ -76,19 +74,11 @@ def _resolve(value: Any, what: str) -> Any:
 
 def _array(spec: Any, what: str) -> np.ndarray:
     """One ``__ndarray__`` spec as an array; dtype, shape and byte count checked first."""
-    if not isinstance(spec, dict):
-        raise ValueError(f"{what}: an array is not an object")
-    dtype_text, shape, text = spec.get("dtype"), spec.get("shape"), spec.get("base64")
-    if not isinstance(dtype_text, str) or not _DTYPE.fullmatch(dtype_text):
-        raise ValueError(f"{what}: array dtype {str(dtype_text)[:40]!r} is not plain numeric")
     try:
-        dtype = np.dtype(dtype_text)
-    except TypeError:
-        raise ValueError(f"{what}: array dtype {dtype_text!r} is not plain numeric") from None
-    if not isinstance(shape, list) or len(shape) > _MAX_DIMS:
-        raise ValueError(f"{what}: array shape is not a list of at most {_MAX_DIMS} sizes")
-    if not all(type(n) is int and n >= 0 for n in shape):
-        raise ValueError(f"{what}: array shape {str(shape)[:60]} is not a list of sizes >= 0")
+        dtype, shape = array_spec(spec)
+    except ValueError as exc:
+        raise ValueError(f"{what}: {exc}") from None
+    dtype_text, text = spec["dtype"], spec.get("base64")
     if not isinstance(text, str):
         raise ValueError(f"{what}: array has no base64 text")
     count = math.prod(shape)
@@ -100,7 +90,7 @@ def _array(spec: Any, what: str) -> np.ndarray:
         raise ValueError(f"{what}: array bytes are not valid base64") from None
     if len(raw) != count * dtype.itemsize:
         raise ValueError(f"{what}: array {dtype_text} {shape} does not match its bytes")
-    return np.frombuffer(raw, dtype, count).reshape(tuple(shape)).copy()
+    return np.frombuffer(raw, dtype, count).reshape(shape).copy()
 
 
 # ----------------------------------------------------------------------------- items

@@ -243,24 +243,25 @@ class _Joint:
     element: ET.Element
 
 
+def _new_name(element: ET.Element, seen: set[str], kind: str, label: str) -> str:
+    """The ``name`` of a ``<link>`` or ``<joint>``, which must be given and not yet seen."""
+    name = element.get("name", "")
+    if not name.strip():
+        raise UrdfError(f"{label}: a <{kind}> has no name")
+    if name in seen:
+        raise UrdfError(f"{label}: two {kind}s are named {_quote(name)}")
+    return name
+
+
 def _tree(root: ET.Element, label: str) -> tuple[set[str], dict[str, _Joint]]:
     """The declared links and each child link's joint, checked to form a tree."""
     links: set[str] = set()
     for element in root.findall("link"):
-        name = element.get("name", "")
-        if not name.strip():
-            raise UrdfError(f"{label}: a <link> has no name")
-        if name in links:
-            raise UrdfError(f"{label}: two links are named {_quote(name)}")
-        links.add(name)
+        links.add(_new_name(element, links, "link", label))
     names: set[str] = set()
     parent_joint: dict[str, _Joint] = {}
     for element in root.findall("joint"):
-        name = element.get("name", "")
-        if not name.strip():
-            raise UrdfError(f"{label}: a <joint> has no name")
-        if name in names:
-            raise UrdfError(f"{label}: two joints are named {_quote(name)}")
+        name = _new_name(element, names, "joint", label)
         names.add(name)
         kind = element.get("type", "")
         if kind not in JOINT_TYPES:

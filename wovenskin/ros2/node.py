@@ -217,23 +217,28 @@ class Ros2Node:
             raise Ros2Error(f"{dds_name} is already used with another message type")
         return topic
 
+    def _endpoint(
+        self, writes: bool, dds_name: str, message_type: type, qos: QosProfile, ros_name: str
+    ) -> Any:
+        """A :class:`Publisher` (``writes``) or :class:`Subscription` on a DDS topic."""
+        dds = _cyclonedds()
+        topic = self._topic(dds_name, message_type)
+        make, wrap = (
+            (dds.pub.DataWriter, Publisher) if writes else (dds.sub.DataReader, Subscription)
+        )
+        entity = make(self._participant, topic, qos=_qos(qos))
+        self._entities.append(entity)
+        return wrap(entity, message_type, ros_name)
+
     def publisher(self, ros_name: str, message_type: type, qos: QosProfile = COMMANDS) -> Publisher:
         """A writer of ``message_type`` on the ROS 2 topic ``ros_name`` (``/a/b``)."""
-        dds = _cyclonedds()
-        topic = self._topic(dds_topic_name(ros_name), message_type)
-        writer = dds.pub.DataWriter(self._participant, topic, qos=_qos(qos))
-        self._entities.append(writer)
-        return Publisher(writer, message_type, ros_name)
+        return self._endpoint(True, dds_topic_name(ros_name), message_type, qos, ros_name)
 
     def subscription(
         self, ros_name: str, message_type: type, qos: QosProfile = SENSOR_DATA
     ) -> Subscription:
         """A reader of ``message_type`` on the ROS 2 topic ``ros_name`` (``/a/b``)."""
-        dds = _cyclonedds()
-        topic = self._topic(dds_topic_name(ros_name), message_type)
-        reader = dds.sub.DataReader(self._participant, topic, qos=_qos(qos))
-        self._entities.append(reader)
-        return Subscription(reader, message_type, ros_name)
+        return self._endpoint(False, dds_topic_name(ros_name), message_type, qos, ros_name)
 
     def service_endpoints(
         self, service: str, request_type: type, response_type: type, *, server: bool
@@ -241,24 +246,9 @@ class Ros2Node:
         """The request and reply endpoints of the ROS 2 service ``service``: a client gets
         (request :class:`Publisher`, reply :class:`Subscription`), a server the reverse.
         QoS: ROS 2's services default, reliable, volatile, keep last 10."""
-        dds = _cyclonedds()
-        request = self._topic(dds_topic_name(service, "rq") + "Request", request_type)
-        reply = self._topic(dds_topic_name(service, "rr") + "Reply", response_type)
-        qos = _qos(COMMANDS)
-        if server:
-            reader = dds.sub.DataReader(self._participant, request, qos=qos)
-            writer = dds.pub.DataWriter(self._participant, reply, qos=qos)
-            self._entities += [reader, writer]
-            return (
-                Subscription(reader, request_type, service),
-                Publisher(writer, response_type, service),
-            )
-        writer = dds.pub.DataWriter(self._participant, request, qos=qos)
-        reader = dds.sub.DataReader(self._participant, reply, qos=qos)
-        self._entities += [writer, reader]
-        return Publisher(writer, request_type, service), Subscription(
-            reader, response_type, service
-        )
+        request = (dds_topic_name(service, "rq") + "Request", request_type, COMMANDS, service)
+        reply = (dds_topic_name(service, "rr") + "Reply", response_type, COMMANDS, service)
+        return self._endpoint(not server, *request), self._endpoint(server, *reply)
 
     @property
     def guid_prefix(self) -> bytes:
