@@ -14,6 +14,7 @@ from rosbags.typesys import Stores, get_typestore
 from typer.testing import CliRunner
 
 from wovenskin.cli import app
+from wovenskin.errors import MissingExtraError
 from wovenskin.recording import bag
 from wovenskin.recording.bag import (
     ANNOTATIONS_TOPIC,
@@ -23,7 +24,6 @@ from wovenskin.recording.bag import (
     LABELS_TOPIC,
     TIMES_TOPIC,
     TOPIC_TYPES,
-    MissingExtraError,
     read_bag,
     write_bag,
 )

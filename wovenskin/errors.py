@@ -24,3 +24,8 @@ class DataError(WovenskinError, ValueError):
 
 class DeviceError(WovenskinError, ConnectionError):
     """A skin or robot that cannot be reached, stopped answering or broke its protocol."""
+
+
+class MissingExtraError(WovenskinError, ImportError):
+    """An optional part of wovenskin needs a package that is not installed; the message
+    names the extra to install (``wovenskin[ros2]``, ``wovenskin[ur]``)."""

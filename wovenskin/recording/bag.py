@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from wovenskin.errors import WovenskinError
+from wovenskin.errors import MissingExtraError
 from wovenskin.outputs import check_new_output
 from wovenskin.recording.bag_documents import (
     annotation_from_item,
@@ -78,10 +78,6 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 MAX_EXACT = 2**53
 """Largest integer magnitude a float64 holds exactly (``seq`` and ``device_t_us``)."""
 _MAX_NS = 2**63 - 1
-
-
-class MissingExtraError(WovenskinError, ImportError):
-    """An optional package wovenskin needs for this is not installed."""
 
 
 def is_bag(path: str | os.PathLike) -> bool:

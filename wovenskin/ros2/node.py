@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from wovenskin.errors import ConfigError, DeviceError
+from wovenskin.errors import ConfigError, DeviceError, MissingExtraError
 
 DOMAIN_ENV = "ROS_DOMAIN_ID"
 MAX_DOMAIN_ID = 232  # DDS's port mapping: domain ids 0-232 (ROS 2 recommends 0-101)
@@ -96,7 +96,9 @@ def _cyclonedds() -> Any:
         import cyclonedds.topic
         import cyclonedds.util
     except ImportError:
-        raise Ros2Error("ROS 2 needs the cyclonedds package: install wovenskin[ros2]") from None
+        raise MissingExtraError(
+            "ROS 2 needs the cyclonedds package: install wovenskin[ros2]"
+        ) from None
     return cyclonedds
 
 

@@ -14,8 +14,8 @@ import importlib.util
 import math
 from dataclasses import dataclass, fields
 
-from wovenskin.errors import ConfigError
-from wovenskin.ros2.node import Ros2Error, dds_topic_name, domain_id
+from wovenskin.errors import ConfigError, MissingExtraError
+from wovenskin.ros2.node import dds_topic_name, domain_id
 from wovenskin.specs import parse_spec
 
 MAX_RATE_HZ = 1000.0  # a rate above the skin's own (200 Hz) publishes every frame
@@ -92,7 +92,9 @@ def parse_ros2_publish(value: str | None) -> SkinTopics | None:
 
 
 def require_cyclonedds() -> None:
-    """Raise one :class:`~wovenskin.ros2.node.Ros2Error` line unless ``cyclonedds`` is
+    """Raise one :class:`~wovenskin.errors.MissingExtraError` line unless ``cyclonedds`` is
     installed (the ``wovenskin[ros2]`` extra)."""
     if importlib.util.find_spec("cyclonedds") is None:
-        raise Ros2Error("--ros2-publish needs the cyclonedds package: install wovenskin[ros2]")
+        raise MissingExtraError(
+            "--ros2-publish needs the cyclonedds package: install wovenskin[ros2]"
+        )

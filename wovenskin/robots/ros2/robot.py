@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from wovenskin.errors import MissingExtraError
 from wovenskin.robots.base import (
     JointLimits,
     Pose,
@@ -120,7 +121,7 @@ class Ros2Robot(Robot):
             return
         try:
             node = self._node_factory(self.settings.domain)
-        except Ros2Error as exc:
+        except (Ros2Error, MissingExtraError) as exc:
             raise RobotError(str(exc)) from None
         try:
             self._twists = node.publisher(
