@@ -255,3 +255,16 @@ def test_twists_go_out_in_the_mappings_frame_unless_the_spec_names_one():
     named = make_robot("ros2:?frame=flange")
     named.use_mapping_frame("tool")
     assert named.frame == "flange"
+
+
+def test_a_headless_replay_reaches_a_real_arm_in_real_time(tmp_path):
+    from wovenskin.recording.formats import write_labelled_stream
+    from wovenskin.runtime.session import open_session
+    from wovenskin.sim.stream import simulate_stream
+
+    stream = tmp_path / "s.npz"
+    write_labelled_stream(stream, simulate_stream(2.0, 1))
+    real = open_session(f"replay:{stream}", make_robot("ros2"), fast_replay=True)
+    simulated = open_session(f"replay:{stream}", "sim", fast_replay=True)
+    assert real.live_skin.source.speed == 1.0  # an arm that moves on its own: real time
+    assert simulated.live_skin.source.speed == 0.0  # the simulated arm: as fast as read

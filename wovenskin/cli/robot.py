@@ -51,7 +51,9 @@ def run(
         None, help="Run on a study task's scene: pick_place or pour (simulated arm only)."
     ),
     headless: bool = typer.Option(
-        False, help="No view (same as --view none); replays run as fast as possible."
+        False,
+        help="No view (same as --view none); replays run as fast as possible on the "
+        "simulated arm (in real time on a real one).",
     ),
     host: str = typer.Option("127.0.0.1", help="Dashboard address; not loopback needs a token."),
     port: int = typer.Option(8000, help="Dashboard port."),

@@ -52,7 +52,8 @@ def open_session(
     """Wire skin, conditioning, recogniser, arbiter, mapping, safety and robot.
 
     ``skin``: ``sim``, ``serial:PORT`` or ``replay:FILE`` (``fast_replay`` plays a replay
-    as fast as possible unless its spec sets ``speed``); ``robot``: ``sim``, ``tm:HOST``,
+    as fast as possible unless its spec sets ``speed``, on a simulated arm only: an arm that
+    moves on its own gets the stream in real time); ``robot``: ``sim``, ``tm:HOST``,
     ``ur:HOST`` or a backend object; ``model``: a checkpoint directory (default: the
     shipped model) unless a ``recognizer`` object is given; ``pipeline_settings``: the
     execution rules (default: the model's recommended arbiter settings); ``record``: a
@@ -75,8 +76,10 @@ def open_session(
     recognizer = recognizer if recognizer is not None else load_recognizer(model)
     action_mapping = ActionMapping.load(mapping)
     pose_store = PoseStore.load(poses)
+    backend = make_robot(robot) if isinstance(robot, str) else robot
+    simulated = type(backend).step is not Robot.step  # a real arm moves in real time only
     defaults: dict[str, Any] = {}
-    if fast_replay and isinstance(skin, str) and skin_spec(skin).kind == "replay":
+    if fast_replay and simulated and isinstance(skin, str) and skin_spec(skin).kind == "replay":
         defaults["speed"] = 0
     defaults.update(source_options or {})
     chain = open_live_pipeline(
@@ -86,7 +89,6 @@ def open_session(
         on_message=on_message,
         defaults=defaults,
     )
-    backend = make_robot(robot) if isinstance(robot, str) else robot
     context = {
         "session": {
             "robot": robot if isinstance(robot, str) else type(robot).__name__,
@@ -98,7 +100,7 @@ def open_session(
     if record is not None:  # once the robot is built too: a bad robot spec leaves no file
         chain.record(record, overwrite=overwrite, settings=context)
     as_fast_as_read = chain.spec.options.get("speed") in FAST_SPEEDS
-    if as_fast_as_read and type(backend).step is not Robot.step:
+    if as_fast_as_read and simulated:
         settings = replace(settings or SessionSettings(), wall_clock_stalls=False)
     session = ControlSession(
         chain.live_skin,
