@@ -48,7 +48,14 @@ import numpy as np
 
 from wovenskin.control.arm_model import ArmModel
 from wovenskin.control.joint_moves import Jacobian, Kinematics, capped_fraction, path_leaves_box
-from wovenskin.control.safety_limits import SafetyLimits, StopEvent, cap_speeds, keep_in_box
+from wovenskin.control.safety_limits import (
+    SafetyLimits,
+    StopEvent,
+    cap_speeds,
+    held_back,
+    keep_in_box,
+)
+from wovenskin.control.watchdogs import Watchdogs
 from wovenskin.robots.base import (
     N_JOINTS,
     JointLimits,
@@ -96,10 +103,7 @@ class SafetyLayer(Robot):
         self._joint_limits: JointLimits | None = None
         self._stops: list[StopEvent] = []
         self._latched: StopEvent | None = None
-        self._last_skin: float | None = None
-        self._last_command: float | None = None
-        self._skin_fired = False
-        self._command_fired = False
+        self._watchdogs = Watchdogs(self.limits.watchdog_s)
         self._sent = np.zeros(6)  # the twist the backend is moving with
         self._refusing: str | None = None  # the reason of a refusal still in force
         self._in_move = False  # a point-to-point move of ours may be running
@@ -157,37 +161,6 @@ class SafetyLayer(Robot):
             return (f"{self._latched.source}: {self._latched.reason}",)
         return self._limiting
 
-    def _limits_report(self, command: np.ndarray) -> tuple[str, ...]:
-        """What changed ``command`` on its way to the backend (see :attr:`limiting`): the
-        speed caps scale the whole twist; an axis of the twist actually sent that is cut
-        further than that met a workspace box face."""
-        if not np.any(command):
-            return ()
-        if self._refusing is not None:
-            return (f"joint margin: {self._refusing}",)
-        held: list[str] = []
-        asked, sent = np.asarray(command, dtype=float), self._sent
-        capped = cap_speeds(asked, self.limits.max_linear_speed, self.limits.max_angular_speed)
-        moving = np.abs(asked[:3]) > 1e-9
-        ratios = np.where(moving, sent[:3] / np.where(moving, asked[:3], 1.0), 1.0)
-        largest = float(np.max(np.abs(asked[:3])))
-        scale = float(np.max(np.abs(capped[:3]))) / largest if largest > 0 else 1.0
-        if scale < 1.0 - 1e-6:
-            cap = 1000 * self.limits.max_linear_speed
-            held.append(f"speed cap: TCP speed limited to {cap:.0f} mm/s")
-        if not np.allclose(capped[3:], asked[3:], rtol=1e-9, atol=1e-12):
-            cap = math.degrees(self.limits.max_angular_speed)
-            held.append(f"speed cap: rotation limited to {cap:.0f} deg/s")
-        for axis, name in enumerate("xyz"):
-            if moving[axis] and ratios[axis] < 0.98 * scale:  # (2 %: a backend's headroom)
-                lower = asked[axis] < 0
-                face = self.limits.workspace_lower if lower else self.limits.workspace_upper
-                held.append(
-                    f"workspace box: {name} at its {'lower' if lower else 'upper'} limit "
-                    f"({1000 * face[axis]:.0f} mm)"
-                )
-        return tuple(held)
-
     # -- Robot interface
 
     def connect(self) -> None:
@@ -212,14 +185,13 @@ class SafetyLayer(Robot):
     def send_twist(self, twist: np.ndarray) -> None:
         now = self._now()
         command = self._checked_twist(twist, now)
-        self._last_command = now
-        self._command_fired = False
+        self._watchdogs.command(now)
         if self._latched is not None:
             if np.any(command):
                 raise RobotError(f"robot is stopped ({self._latched.reason}); clear the stop first")
             return
         self._forward(command, self.limits.box_horizon_s, self.limits.joint_horizon_s, now)
-        self._limiting = self._limits_report(command)
+        self._limiting = held_back(command, self._sent, self._refusing, self.limits)
 
     def move_to_joints(self, q: np.ndarray, speed_fraction: float = 0.2) -> None:
         self._require_running()
@@ -305,13 +277,11 @@ class SafetyLayer(Robot):
 
     def heartbeat_skin(self, t: float | None = None) -> None:
         """The skin stream delivered a frame at ``t`` (default: now)."""
-        self._last_skin = self._time(t)
-        self._skin_fired = False
+        self._watchdogs.skin(self._time(t))
 
     def heartbeat_command(self, t: float | None = None) -> None:
         """The control loop is alive at ``t`` (default: now), whether or not it moves."""
-        self._last_command = self._time(t)
-        self._command_fired = False
+        self._watchdogs.command(self._time(t))
 
     def check(self, now: float | None = None) -> list[StopEvent]:
         """Run the watchdogs at ``now`` (default: the clock); returns the stops they made."""
@@ -321,17 +291,9 @@ class SafetyLayer(Robot):
             return fired  # already held: nothing more to stop
         if self._in_move:
             self._watch_move(self.limits.box_horizon_s, now)
-        limit = self.limits.watchdog_s
-        if not self._skin_fired and _silent(self._last_skin, now, limit):
-            self._skin_fired = True
-            silence = now - (self._last_skin or now)
-            reason = f"skin stream stalled: no frame for {1000 * silence:.0f} ms"
-            fired.append(self._stop_now(now, reason, "skin watchdog"))
-        elif not self._command_fired and _silent(self._last_command, now, limit):
-            self._command_fired = True
-            silence = now - (self._last_command or now)
-            reason = f"command stream silent for {1000 * silence:.0f} ms"
-            fired.append(self._stop_now(now, reason, "command watchdog"))
+        due = self._watchdogs.due(now)
+        if due is not None:
+            fired.append(self._stop_now(now, *due))
         return fired
 
     def emergency_stop(self, reason: str = "emergency stop") -> None:
@@ -342,16 +304,10 @@ class SafetyLayer(Robot):
         """Release a latched stop; the armed watchdogs start counting again from now."""
         if self._latched is not None:
             log.info("safety stop cleared (was: %s)", self._latched.reason)
-        now = self._now()
-        if self._last_skin is not None:
-            self._last_skin = max(self._last_skin, now)
-        if self._last_command is not None:
-            self._last_command = max(self._last_command, now)
+        self._watchdogs.restart(self._now())
         self._latched = None
         self._refusing = None
         self._blocked = None
-        self._skin_fired = False
-        self._command_fired = False
 
     # -- internals
 
@@ -529,10 +485,6 @@ class SafetyLayer(Robot):
             self._record(now, *problem)
             self._in_move = False
             self.robot.stop()
-
-
-def _silent(last: float | None, now: float, limit: float) -> bool:
-    return last is not None and now - last > limit
 
 
 def _fraction(speed_fraction: object) -> float:

@@ -100,3 +100,37 @@ def keep_in_box(
     room_up = np.maximum((limits.workspace_upper - standoff - p) / horizon, -push)
     room_down = np.minimum((limits.workspace_lower + standoff - p) / horizon, push)
     return np.clip(np.asarray(velocity, dtype=float), room_down, room_up)
+
+
+def held_back(
+    asked: np.ndarray, sent: np.ndarray, refusing: str | None, limits: SafetyLimits
+) -> tuple[str, ...]:
+    """What changed the twist ``asked`` into ``sent`` on its way to the backend, one line
+    each, for the views (``SafetyLayer.limiting``): a joint margin's refusal still in
+    force; the speed caps, which scale the whole twist; an axis cut further than that,
+    which met a workspace box face."""
+    if not np.any(asked):
+        return ()
+    if refusing is not None:
+        return (f"joint margin: {refusing}",)
+    held: list[str] = []
+    asked, sent = np.asarray(asked, dtype=float), np.asarray(sent, dtype=float)
+    capped = cap_speeds(asked, limits.max_linear_speed, limits.max_angular_speed)
+    moving = np.abs(asked[:3]) > 1e-9
+    ratios = np.where(moving, sent[:3] / np.where(moving, asked[:3], 1.0), 1.0)
+    largest = float(np.max(np.abs(asked[:3])))
+    scale = float(np.max(np.abs(capped[:3]))) / largest if largest > 0 else 1.0
+    if scale < 1.0 - 1e-6:
+        held.append(f"speed cap: TCP speed limited to {1000 * limits.max_linear_speed:.0f} mm/s")
+    if not np.allclose(capped[3:], asked[3:], rtol=1e-9, atol=1e-12):
+        cap = math.degrees(limits.max_angular_speed)
+        held.append(f"speed cap: rotation limited to {cap:.0f} deg/s")
+    for axis, name in enumerate("xyz"):
+        if moving[axis] and ratios[axis] < 0.98 * scale:  # (2 %: a backend's headroom)
+            lower = asked[axis] < 0
+            face = limits.workspace_lower if lower else limits.workspace_upper
+            held.append(
+                f"workspace box: {name} at its {'lower' if lower else 'upper'} limit "
+                f"({1000 * face[axis]:.0f} mm)"
+            )
+    return tuple(held)

@@ -17,8 +17,8 @@ drains.  The thread never dies on stream problems; it counts them in
 - serial errors or the port vanishing: ``disconnected``, then reconnection with
   exponential backoff (0.05 s doubling to 2 s), ``connected``, GET_INFO and START again.
 
-Frames carry the stream clock of :mod:`wovenskin.skin.stream_clock`; the spec's options
-are :class:`~wovenskin.skin.serial_options.SerialOptions`.
+Frames carry the stream clock of :mod:`wovenskin.skin.stream_clock`; the commands and their
+ACKs are :mod:`~wovenskin.skin.serial_commands`', the options :mod:`~.serial_options`'.
 """
 
 from __future__ import annotations
@@ -42,16 +42,15 @@ from wovenskin.skin.layout import (
 )
 from wovenskin.skin.messages import (
     AckMessage,
-    AckStatus,
     CommandId,
-    CommandMessage,
     DecodeError,
     FrameMessage,
     InfoMessage,
     LogMessage,
     MessageType,
 )
-from wovenskin.skin.protocol import StreamDecoder, encode_message
+from wovenskin.skin.protocol import StreamDecoder
+from wovenskin.skin.serial_commands import CommandLink
 from wovenskin.skin.serial_options import DEFAULT_BAUD, DEFAULT_STALL_MS, read_serial_options
 from wovenskin.skin.stream_clock import StreamClock
 from wovenskin.skin.textlines import TextLineDecoder
@@ -62,7 +61,6 @@ READ_TIMEOUT_S = 0.005  # longest a read blocks: bounds stall-detection and clos
 WRITE_TIMEOUT_S = 0.5
 BACKOFF_START_S = 0.05
 BACKOFF_MAX_S = 2.0
-ACK_TIMEOUT_S = 1.0
 INFO_RETRY_S = 1.0
 MAX_QUEUED_ITEMS = 4000  # 20 s at 200 Hz; beyond this the oldest items are dropped
 
@@ -135,10 +133,7 @@ class SerialSkinSource:
         self._device_info: InfoMessage | None = None
         self._info_since_connect = False
         self._next_info_request = 0.0
-        self._commands_to_send: deque[CommandId] = deque()
-        self._command_seq = 0
-        self._awaiting_ack: dict[int, tuple[str, float]] = {}
-        self._acks: deque[AckMessage] = deque(maxlen=64)
+        self._commands = CommandLink()
 
         self._clock = StreamClock()
         self._text_seq = 0
@@ -171,7 +166,7 @@ class SerialSkinSource:
     def acks(self) -> list[AckMessage]:
         """The most recent ACKs the device sent (newest last)."""
         with self._cond:
-            return list(self._acks)
+            return list(self._commands.acks)
 
     def start(self) -> None:
         """Open the port and start the reader thread (idempotent).
@@ -219,7 +214,7 @@ class SerialSkinSource:
             )
             return
         with self._cond:
-            self._commands_to_send.append(COMMANDS[name])
+            self._commands.queue(COMMANDS[name])
 
     def close(self) -> None:
         self._stop.set()
@@ -285,7 +280,7 @@ class SerialSkinSource:
         self._emit(SourceEvent("connected", f"opened {self.port}", time.monotonic()))
         if self.fmt == "binary":
             self._info_since_connect = False
-            self._commands_to_send.extendleft([CommandId.START, CommandId.GET_INFO])
+            self._commands.queue_first([CommandId.GET_INFO, CommandId.START])
             self._next_info_request = now + INFO_RETRY_S
 
     def _close_port(self) -> None:
@@ -299,7 +294,7 @@ class SerialSkinSource:
         self._close_port()
         self._stats.connected = False
         self._stats.last_error = reason
-        self._awaiting_ack.clear()
+        self._commands.forget_awaited()
         self._backoff_s = BACKOFF_START_S
         self._next_attempt = now + self._backoff_s
         log.warning("serial %s disconnected: %s", self.port, reason)
@@ -390,19 +385,9 @@ class SerialSkinSource:
     def _take_queued_commands(self, now: float) -> list[bytes]:
         """Wire bytes of the commands to send now (ACKs are awaited from now on)."""
         if self._device_info_missing(now):
-            self._commands_to_send.append(CommandId.GET_INFO)
+            self._commands.queue(CommandId.GET_INFO)
             self._next_info_request = now + INFO_RETRY_S
-        outgoing = []
-        while self._commands_to_send:
-            command = self._commands_to_send.popleft()
-            seq = self._command_seq
-            self._command_seq = (self._command_seq + 1) & 0xFFFFFFFF
-            outgoing.append(
-                encode_message(CommandMessage(seq, int((now - self._t0) * 1e6), command))
-            )
-            if command != CommandId.GET_INFO:  # GET_INFO is answered by INFO, not ACK
-                self._awaiting_ack[seq] = (command.name.lower(), now)
-        return outgoing
+        return self._commands.take(now, int((now - self._t0) * 1e6))
 
     def _device_info_missing(self, now: float) -> bool:
         return (
@@ -410,26 +395,13 @@ class SerialSkinSource:
         )
 
     def _check_acks(self, now: float) -> None:
-        for seq, (name, sent) in list(self._awaiting_ack.items()):
-            if now - sent > ACK_TIMEOUT_S:
-                del self._awaiting_ack[seq]
-                message = f"device did not acknowledge {name!r} within {ACK_TIMEOUT_S:.1f} s"
-                log.warning("serial %s: %s", self.port, message)
-                self._emit(SourceEvent("error", message, now))
+        for message in self._commands.overdue(now):
+            log.warning("serial %s: %s", self.port, message)
+            self._emit(SourceEvent("error", message, now))
 
     def _on_ack(self, ack: AckMessage, now: float) -> None:
-        self._acks.append(ack)
-        try:
-            default_name = CommandId(ack.command).name.lower()
-        except ValueError:
-            default_name = f"command {ack.command}"
-        name, _ = self._awaiting_ack.pop(ack.seq, (default_name, now))
-        if not ack.ok:
-            try:
-                status = AckStatus(ack.status).name.lower().replace("_", " ")
-            except ValueError:
-                status = f"error {ack.status}"
-            message = f"device refused {name!r}: {status}"
+        message = self._commands.acknowledged(ack)
+        if message is not None:
             log.warning("serial %s: %s", self.port, message)
             self._emit(SourceEvent("error", message, now))
 
@@ -502,10 +474,8 @@ class SerialSkinSource:
         self._emit(Frame(msg.seq, t, values, t_host=now, device_t_us=msg.device_t_us))
 
     def _stream_time(self, seq: int, device_us: int, now: float) -> float | None:
-        """Account for ``seq`` (drops, resets) and return the frame's stream time.
-
-        Returns ``None`` for an exact duplicate of the previous frame.
-        """
+        """Account for ``seq`` (drops, resets) and return the frame's stream time, or
+        ``None`` for an exact duplicate of the previous frame."""
         period_s = 1.0 / self._info.sample_rate_hz
         placed = self._clock.place_frame(seq, device_us, now - self._t0, period_s)
         if placed.reset_from is not None:
