@@ -21,6 +21,7 @@ from wovenskin.control.session_inputs import (
     CommandRecord,
     InputEvent,
     JointJog,
+    active_command,
     parse_joint,
     rotation_matrix,
     rotation_vector,
@@ -187,10 +188,13 @@ def test_the_newest_of_gesture_and_held_input_is_the_active_command(tmp_path) ->
     session = idle_session(tmp_path, seconds=1.0)
     session.state.gesture, session.state.gesture_since = "swipe_up", 1.0
     session.apply_input(press("translate +x"), t=2.0)
-    label, action, _, since = session._active_command()
+    state = session.state
+    label, action, _, since = active_command(
+        session.inputs, state.gesture, state.gesture_since, session.mapping
+    )
     assert label == "translate +x (test)" and since == 2.0 and str(action) == "translate +x"
-    session.state.gesture_since = 3.0
-    assert session._active_command()[0] == "swipe_up"
+    state.gesture_since = 3.0
+    assert active_command(session.inputs, "swipe_up", 3.0, session.mapping).label == "swipe_up"
     session.apply_input(release("translate +x"), t=3.5)
     assert session.held_input is None and session.state.held is None
     session.close()

@@ -1,6 +1,13 @@
 """A robot control session: skin -> recogniser -> active command -> safe robot motion.
 
-:class:`ControlSession` owns the control loop.  Each :class:`~wovenskin.signal.live_skin.LiveSkin`
+:class:`ControlSession` owns the control loop and composes its parts, each an object of
+its own: the safety layer (:class:`~wovenskin.control.safety.SafetyLayer`), the inputs
+beside the skin (:class:`~wovenskin.control.session_inputs.Inputs`), the pose moves
+(:class:`~wovenskin.control.session_poses.PoseMover`), the recording
+(:class:`~wovenskin.control.session_record.SessionRecorder`) and the messages
+(:class:`~wovenskin.control.session_state.Reporter`).  The way from a gesture to the robot
+reads top to bottom in :meth:`ControlSession._tick` and :class:`~wovenskin.control.drive.Drive`
+(the path the mapping's speeds take to the robot).  Each ``LiveSkin``
 block goes through the recognition :class:`~wovenskin.recognition.pipeline.LivePipeline`
 once; then the loop ticks once per frame of the block, at the frame's time on the skin
 clock (200 Hz for the default skin): the command active at that time is mapped
@@ -29,27 +36,38 @@ from __future__ import annotations
 
 import logging
 import time
-from collections import deque
 from collections.abc import Callable, Iterable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from wovenskin.control.gesture_motion import GestureMotion
-from wovenskin.control.mapping import ActionMapping, PoseAction, TwistAction
-from wovenskin.control.motion import TwistShaper
+from wovenskin.control.delegated import Delegated
+from wovenskin.control.drive import Drive
+from wovenskin.control.mapping import ActionMapping, PoseAction
 from wovenskin.control.poses import PoseStore
 from wovenskin.control.safety import SafetyLayer
 from wovenskin.control.safety_limits import SafetyLimits
-from wovenskin.control.session_inputs import CommandInput, JointJog, SessionInputs
-from wovenskin.control.session_poses import PoseMove, PoseMoves
-from wovenskin.control.session_record import SessionRecording
+from wovenskin.control.session_inputs import (
+    CommandInput,
+    InputEvent,
+    Inputs,
+    active_command,
+    resolve_input,
+    step_goal,
+)
+from wovenskin.control.session_loop import SkinLoop
+from wovenskin.control.session_poses import PoseMover
+from wovenskin.control.session_record import SessionRecorder, robot_payload
 from wovenskin.control.session_state import (
+    Reporter,
     SessionResult,
     SessionSettings,
     SessionState,
+    min_probability_of,
+    update_predictions,
 )
-from wovenskin.control.session_views import SessionViews
+from wovenskin.control.session_views import holding
 from wovenskin.control.trace import TraceWriter
 from wovenskin.errors import ConfigError
 from wovenskin.recognition.arbiter import LIFT_OFF
@@ -58,21 +76,16 @@ from wovenskin.robots.base import Robot, RobotError
 log = logging.getLogger(__name__)
 
 
-class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
+class ControlSession:
     """The control loop of one session (see the module docstring).
 
-    Pose moves (:class:`~wovenskin.control.session_poses.PoseMoves`), the recording
-    (:class:`~wovenskin.control.session_record.SessionRecording`), the inputs beside the
-    skin and the command count (:class:`~wovenskin.control.session_inputs.SessionInputs`)
-    and what views ask (:class:`~wovenskin.control.session_views.SessionViews`) are in
-    their own modules; ``inputs`` are polled every tick (:meth:`add_input` adds more).
-    ``live_skin`` and ``pipeline`` come from
-    :func:`~wovenskin.runtime.session.open_session` or are built by the
-    caller (``LivePipeline.for_live_skin``); ``robot`` is the raw backend, which the
-    session wraps in its own :class:`SafetyLayer`.  ``trace`` gets a line per tick;
-    ``recorder`` (the :class:`~wovenskin.recording.native.RecordingWriter` also given to
-    the ``LiveSkin``) gets predictions, commands, robot state, stops and errors as
-    annotations.  ``on_tick(session)`` runs after every tick (frames: ``tick_block``).
+    ``live_skin`` and ``pipeline`` come from :func:`~wovenskin.runtime.session.open_session`
+    or are built by the caller (``LivePipeline.for_live_skin``); ``robot`` is the raw
+    backend, which the session wraps in its own :class:`SafetyLayer`.  ``trace`` gets a
+    line per tick; ``recorder`` (the :class:`~wovenskin.recording.native.RecordingWriter`
+    also given to the ``LiveSkin``) gets predictions, commands, robot state, stops and
+    errors as annotations.  ``inputs`` are polled every tick (:meth:`add_input` adds
+    more).  ``on_tick(session)`` runs after every tick (frames: ``tick_block``).
     """
 
     def __init__(
@@ -97,68 +110,108 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self.robot = robot
         self.mapping = mapping if mapping is not None else ActionMapping.load()
         self.settings = settings or SessionSettings()
-        self.poses = poses
+        self.state = SessionState(class_names=tuple(getattr(pipeline, "class_names", ())))
+        self._wall = wall_clock
+        # the parts, each with what it needs and no more
         self.safety = SafetyLayer(robot, limits, clock=self._clock)
         robot.use_mapping_frame(self.mapping.settings.frame)
-        self.shaper = TwistShaper(self.mapping.settings, self.safety.capabilities().release_stop_s)
-        self.gesture_motion = GestureMotion(self.mapping)
+        self.record = SessionRecorder(live_skin, recorder, self._say)
+        self.report = Reporter(
+            self.state, on_message or (lambda _message: None), wall_clock,
+            self.settings.error_repeat_s, self.record.note, self._clock,
+        )  # fmt: skip
+        self.inputs = Inputs(inputs)
+        self.pose_mover = PoseMover(self.safety, poses, self._say, self._error)
+        self.drive = Drive(
+            self.mapping, self.safety, self.pose_mover, self.state, self.settings, self.report
+        )
+        self.loop = SkinLoop(
+            live_skin, pipeline, self.settings, self.state, wall_clock,
+            tick=self._tick, change=self._apply_change, predictions=self._note_predictions,
+            alive=self._skin_alive, idle=self._idle, error=self._error,
+            watchdog_s=self.safety.limits.watchdog_s,
+        )  # fmt: skip
         self.trace = trace
-        self.recorder = recorder
-        self._on_message = on_message or (lambda _message: None)
         self._on_tick = on_tick
-        self._wall = wall_clock
-        self.state = SessionState(class_names=tuple(getattr(pipeline, "class_names", ())))
-        self._now = 0.0
-        self._last_t: float | None = None  # stream time of the newest frame seen
-        self._last_wall: float | None = None  # wall time when it arrived
-        self._last_seq = -1
         self._tick_t: float | None = None
-        self._robot_t: float | None = None  # session time a simulated robot has reached
         self._traced_t: float | None = None  # time of the newest trace line
-        self._pose_move: PoseMove | None = None
-        self._pose_tried: float | None = None  # gesture_since of the last pose command
         self._stops_seen = 0
         self._user_stop = False  # the stop key latches until resume()
         self._commands = 0
-        self._error_times: dict[str, float] = {}
-        self._quit = ""
-        self._quit_asked = False  # request_quit() since the last run() ended
-        self._held_over: tuple[np.ndarray, deque] | None = None  # frames past a run's end
-        self._started_wall: float | None = None
-        self._first_t: float | None = None
-        self._seconds: float | None = None
-        self._end_t: float | None = None  # session time at which run() ends
-        self._simulated = type(robot).step is not Robot.step
-        self.speed_scale = 1.0  # set_speed_scale: fraction of the mapping's speeds
-        self.recording_context: dict[str, Any] = {}  # what start_recording writes as settings
-        self.last_block_compute_s = 0.0  # recogniser + control + robot for the last block
-        self.tick_block: Any = None  # the LiveBlock whose frames are being ticked
-        self._steps_through_safety = type(self.safety).step is not Robot.step
-        self._init_inputs(inputs)
 
-    # -- the session clock
+    # -- what callers read and set: the parts' own attributes under the session's names
 
-    def _clock(self) -> float:
-        return self._now
+    shaper = Delegated("drive", "shaper")
+    gesture_motion = Delegated("drive", "gesture_motion")
+    speed_scale = Delegated("drive", "speed_scale")  # set_speed_scale: of the mapping's speeds
+    poses = Delegated("pose_mover", "poses")
+    recorder = Delegated("record", "writer")  # the recording's writer while one runs
+    recording = Delegated("record", "active")
+    recording_context = Delegated("record", "context", settable=True)  # open_session's
+    command_log = Delegated("inputs", "command_log")
+    held_input = Delegated("inputs", "held_label")
+    gripper_closed = Delegated("inputs", "gripper_closed")
+    gesture_frame = Delegated("inputs", "gesture_frame", settable=True)
+    on_gripper = Delegated("inputs", "on_gripper", settable=True)
+
+    tick_block = Delegated("loop", "tick_block")  # the LiveBlock whose frames are ticked
+    last_block_compute_s = Delegated("loop", "last_block_compute_s")  # the last block's cost
 
     @property
     def now(self) -> float:
         """The session clock: skin time, advanced by the wall clock while no frames arrive."""
-        return self._now
+        return self.loop.now
 
     @property
     def user_stopped(self) -> bool:
         """Whether the stop key (:meth:`emergency_stop`) holds the robot."""
         return self._user_stop
 
+    @property
+    def command_count(self) -> int:
+        """Commands so far, as the paper counts them (discrete inputs)."""
+        return len(self.inputs.command_log)
+
+    def holding(self) -> tuple[str, ...]:
+        """Which limits hold the arm back now, one line each, for the views."""
+        key_held = self.inputs.held is not None
+        return holding(self.safety, self.state, self.robot, self._user_stop, key_held)
+
+    def add_input(self, source: CommandInput) -> None:
+        """Poll ``source`` every tick from now on."""
+        self.inputs.devices.append(source)
+
+    def start_recording(self, path: str | Path, overwrite: bool = False) -> Path:
+        return self.record.start(path, overwrite)
+
+    def stop_recording(self) -> Path | None:
+        return self.record.stop()
+
+    def store_pose(self, name: str) -> None:
+        """Store the arm's current joints as the ``name`` pose."""
+        self.pose_mover.store(name)
+
+    def gripper_was_opened(self) -> None:
+        """The gripper was opened outside the inputs (a task scene's reset): the next
+        toggle closes it."""
+        self.inputs.gripper_closed = False
+
+    def count_command(self, t: float, source: str, name: str, kind: str) -> None:
+        """Count one command and log it (and into the recording, when one runs)."""
+        self.inputs.count(t, source, name, kind)
+        self.record.note("inputs", t, {"source": source, "name": name, "kind": kind})
+
     # -- lifecycle
+
+    def _clock(self) -> float:
+        return self.loop.now
 
     def start(self) -> None:
         """Connect the robot (``RobotError`` if it is not there) and start the skin."""
         self.safety.connect()
         for check in self.safety.capabilities().left_to_controller:
-            self._message(f"robot {self.robot.name}: left to the arm's controller: {check}")
-        self._started_wall = self._wall()
+            self._say(f"robot {self.robot.name}: left to the arm's controller: {check}")
+        self.loop.started_wall = self._wall()
         try:
             self.state.robot = self.safety.state()
         except RobotError as exc:
@@ -178,20 +231,16 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
                 self.live_skin.close()
                 if self.trace is not None:
                     self.trace.close()
-                if self.recorder is not None:
-                    self.recorder.close()
+                self.record.close()
 
     def request_quit(self, reason: str = "quit by the user") -> None:
         """End :meth:`run` after the current step (or the next run, if none is running)."""
-        self._quit = reason
-        self._quit_asked = True
+        self.loop.request_quit(reason)
 
     def emergency_stop(self, reason: str = "stop key") -> None:
         """Stop everything now; motion resumes only after :meth:`resume`."""
         self._user_stop = True
-        self._pose_move = None
-        self.shaper.reset()
-        self.gesture_motion.cancel()
+        self.drive.halt()
         self.safety.emergency_stop(reason)
         self._report_new_stops()
 
@@ -201,7 +250,7 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self.safety.clear_stop()
         self.shaper.reset()
         self.state.stopped = self.safety.stopped
-        self._message("stop cleared: the robot moves again on the next command")
+        self._say("stop cleared: the robot moves again on the next command")
 
     def set_speed_scale(self, scale: float) -> None:
         """Scale twists, steps and pose moves by ``scale`` (0.01-1, a pendant's 1-100 %
@@ -209,10 +258,10 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         scale = float(scale)
         if not np.isfinite(scale) or not 0.01 <= scale <= 1.0:
             raise ConfigError(f"speed scale must be between 0.01 and 1, got {scale}")
-        self.speed_scale = scale
-        self._message(f"speed scaled to {scale:.0%}")
+        self.drive.speed_scale = scale
+        self._say(f"speed scaled to {scale:.0%}")
 
-    # -- the loop
+    # -- the loop (polls and the clock: SkinLoop), and what a tick is told
 
     def run(
         self,
@@ -221,159 +270,41 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
     ) -> SessionResult:
         """Step until the skin ends, :meth:`request_quit`, ``seconds`` of session time
         pass, or ``should_continue()`` returns False; returns the session's figures.
-        It may be called again: the next run goes on from where this one ended (the
-        frames of its last block that lay past its end come first)."""
-        if self._started_wall is None:
+        It may be called again: the next run goes on from where this one ended."""
+        if self.loop.started_wall is None:
             self.start()
-        if not self._quit_asked:
-            self._quit = ""  # the previous run's own end, not a request to quit
-        self._seconds = seconds
-        self._end_t = None
-        if seconds is not None and self._first_t is not None:
-            self._end_t = self._now + seconds
-        if self._held_over is not None and not self._quit:
-            times, pending = self._held_over
-            self._held_over = None
-            self._tick_frames(times, pending)
-        try:
-            return self._run_loop(should_continue)
-        finally:
-            self._quit_asked = False
-
-    def _run_loop(self, should_continue: Callable[[], bool] | None) -> SessionResult:
-        seconds = self._seconds
-        while True:
-            if self._quit:
-                break
-            self.step()
-            if self._quit:
-                break
-            if self.state.ended:
-                self._quit = "the skin stream ended"
-                break
-            if self._end_t is not None and self._now >= self._end_t:
-                self._quit = f"{seconds:g} s elapsed"
-                break
-            if should_continue is not None and not should_continue():
-                self._quit = self._quit or "stopped by the caller"
-                break
+        self.loop.run(seconds, should_continue)
         return self.result()
-
-    def result(self) -> SessionResult:
-        stream_s = 0.0 if self._first_t is None else self._now - self._first_t
-        wall_s = 0.0 if self._started_wall is None else self._wall() - self._started_wall
-        return SessionResult(
-            self.state.ticks,
-            stream_s,
-            wall_s,
-            self._commands,
-            list(self.safety.stops),
-            self.state.errors,
-            self._quit or "running",
-        )
 
     def step(self, timeout: float | None = None) -> int:
         """One skin poll and the ticks of the frames it brought; returns the tick count."""
-        timeout = self.settings.idle_timeout_s if timeout is None else timeout
-        block = self.live_skin.step(timeout=timeout)
-        polled = time.perf_counter()
-        skin = self.live_skin.state
-        self.state.ended = bool(skin.ended)
-        arrived = skin.seq != self._last_seq and skin.seq >= 0  # also while calibrating
-        if arrived:
-            self._last_seq = skin.seq
-            self._frames_arrived(float(skin.t))
-        if block is None or len(block.t) == 0:
-            if arrived:  # frames but no conditioned output (calibrating): the skin is alive
-                self._now = max(self._now, float(skin.t))
-                self._check_watchdogs(float(skin.t))
-                self.safety.heartbeat_skin(float(skin.t))
-            else:
-                self._idle()
-            return 0
-        ticks = self._on_block(block)
-        self.last_block_compute_s = time.perf_counter() - polled
-        return ticks
+        return self.loop.step(timeout)
 
-    def _frames_arrived(self, t: float) -> None:
-        if self._first_t is None:  # the first poll may bring many frames: its first one
-            frames = max(1, self.live_skin.stats().good_frames)
-            self._first_t = t - (frames - 1) / self.live_skin.info.sample_rate_hz
-            if self._seconds is not None:
-                self._end_t = self._first_t + self._seconds
-        self._last_t = t
-        self._last_wall = self._wall()
+    def result(self) -> SessionResult:
+        stream_s, wall_s = self.loop.figures()
+        return SessionResult(
+            self.state.ticks, stream_s, wall_s, self._commands, list(self.safety.stops),
+            self.state.errors, self.loop.quit or "running",
+        )  # fmt: skip
 
-    def _idle(self) -> None:
-        """No conditioned frames: let the watchdogs see the time that passes."""
-        if self._last_t is None or self._last_wall is None:
+    def _skin_alive(self, t: float) -> None:
+        """Frames arrived without conditioned output (calibrating): the skin is alive."""
+        self._check_watchdogs(t)
+        self.safety.heartbeat_skin(t)
+
+    def _idle(self, now: float, stalled: bool) -> None:
+        """No frames: the watchdogs see the time pass; a simulated arm moves on to ``now``
+        (and is traced once the stall is a watchdog's)."""
+        self._check_watchdogs(now)
+        if not self.drive.simulated:
             return
-        if not self.settings.wall_clock_stalls:
-            return
-        self._now = max(self._now, self._last_t + (self._wall() - self._last_wall))
-        self._check_watchdogs(self._now)
-        if not self._simulated:
-            return
-        self._advance_robot(self._now)
+        self.drive.advance_robot(now)
         self._read_robot()
-        stalled = self._now - self._last_t > self.safety.limits.watchdog_s
         if stalled and self.state.robot is not None:
-            self._trace(self._now)
-
-    def _advance_robot(self, t: float) -> None:
-        """Step a simulated robot from the time it has reached to ``t`` (never backwards,
-        at most ``max_robot_step_s`` at once: a longer gap is cut and reported)."""
-        if not self._simulated:
-            return
-        if self._robot_t is None:
-            self._robot_t = t
-            return
-        dt = t - self._robot_t
-        if not dt > 0.0:
-            return
-        self._robot_t = t
-        cap = self.settings.max_robot_step_s
-        if dt > cap:
-            text = f"skin time jumped by {dt:.3g} s: the simulated arm is stepped {cap:g} s"
-            log.warning("%s", text)
-            self._message(f"{t:8.2f} s  {text} (capped)")
-            dt = cap
-        try:
-            if self._steps_through_safety:
-                self.safety.step(dt)
-            else:
-                self.robot.step(dt)
-        except RobotError as exc:
-            self._robot_failed(exc)
-
-    def _on_block(self, block: Any) -> int:
-        times = np.asarray(block.t, dtype=np.float64).reshape(-1)
-        try:
-            changes = list(self.pipeline.feed(block))
-        except ValueError as exc:  # the command ends: no motion on frames we cannot trust
-            self._error(f"skin frames dropped: {exc}")  # one line however many frames
-            ended = self.pipeline.reset(float(times[0]))
-            changes = [] if ended is None else [ended]
-        self._record_predictions(float(times[-1]))
-        self.tick_block = block
-        self._tick_frames(times, deque(sorted(changes, key=lambda c: c.t)))
-        return len(times)
-
-    def _tick_frames(self, times: np.ndarray, pending: deque) -> None:
-        """Tick the frames at ``times``, applying the recogniser's ``pending`` changes as
-        their times come; frames past the run's end are held over for the next run."""
-        for i, t in enumerate(times):
-            if self._end_t is not None and t > self._end_t:
-                self._quit = f"{self._seconds:g} s elapsed"
-                self._held_over = (times[i:], pending)
-                return
-            while pending and pending[0].t <= t:
-                self._apply_change(pending.popleft())
-            self._tick(float(t))
-        while pending:  # changes stamped after the block's last frame (none expected)
-            self._apply_change(pending.popleft())
+            self._trace(now)
 
     def _apply_change(self, change: Any) -> None:
+        """The recogniser's command changed at ``change.t``: a gesture began or ended."""
         self._commands += 1
         if change.gesture is not None:  # an activation is a command; its end is none
             self.count_command(float(change.t), "skin", change.gesture, "gesture")
@@ -381,27 +312,39 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self.state.gesture_since = float(change.t)
         if change.gesture is not None:
             action = self.mapping.action_for(change.gesture)
-            self.gesture_motion.started(action, self.gesture_frame, float(change.t))
+            self.gesture_motion.started(action, self.inputs.gesture_frame, float(change.t))
         else:
             self.gesture_motion.ended(float(change.t), lifted=change.reason == LIFT_OFF)
-        name = change.gesture or "none"
-        self._message(f"{change.t:8.2f} s  command {name} ({change.reason})")
-        if self.recorder is not None:
-            payload = {"gesture": change.gesture, "reason": change.reason}
-            self.recorder.add_annotation("commands", float(change.t), payload)
+        self._say(f"{change.t:8.2f} s  command {change.gesture or 'none'} ({change.reason})")
+        payload = {"gesture": change.gesture, "reason": change.reason}
+        self.record.note("commands", change.t, payload)
 
-    # -- one tick
+    def _note_predictions(self, t: float) -> None:
+        probabilities = getattr(self.pipeline, "latest_probabilities", None)
+        if probabilities is None:
+            return
+        probabilities = np.asarray(probabilities, dtype=np.float32)
+        contacts = getattr(getattr(self.live_skin, "state", None), "contacts", None)
+        minimum = min_probability_of(self.pipeline)
+        update_predictions(self.state, probabilities, minimum, bool(contacts), t)
+        top, p = self.state.top
+        self.record.note("predictions", t, {"top": top, "p": p, "probabilities": probabilities})
+
+    # -- one tick: from the active command to the robot, top to bottom
 
     def _tick(self, t: float) -> None:
         dt = 0.0 if self._tick_t is None else max(0.0, t - self._tick_t)
         self._tick_t = t
-        self._now = max(self._now, t)
         self._check_watchdogs(t)  # before the heartbeat: a gap in the stream is a stall
         self.safety.heartbeat_skin(t)
         self._clear_recovered_stops()
-        self._poll_inputs(t)
-        self._control(t, dt)
-        self._advance_robot(t)
+        for event in self.inputs.poll(t):
+            self._apply_input(event, t)
+        command = active_command(
+            self.inputs, self.state.gesture, self.state.gesture_since, self.mapping
+        )
+        self.drive.control(command, t, dt, self._tick_t)
+        self.drive.advance_robot(t)
         self._read_robot()
         self.state.t = t
         self.state.ticks += 1
@@ -418,90 +361,74 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         self._traced_t = t
         if self.trace is not None:
             self.trace.write(t, self.state.gesture, self.state.robot)
-        if self.recorder is not None:
-            self._record_robot(t)
+        if self.record.active:
+            self.record.note("robot", t, robot_payload(self.state))
 
-    def _control(self, t: float, dt: float) -> None:
-        label, action, frame, since = self._active_command()
+    # -- pose moves, inputs beside the skin
+
+    def go_to_pose(self, name: str) -> bool:
+        """Start a move to the stored ``name`` pose that runs to completion (the dashboard's
+        go-home button); a gesture, the stop key or a watchdog ends it.  Returns whether
+        the move started: not while stopped, nor without a stored (or built-in) pose."""
+        if name not in ("home", "initial"):
+            raise ConfigError(f"unknown pose {name!r}: use home or initial")
         if self.safety.stopped:
-            self._pose_move = None
-            self.shaper.reset()
-            self.gesture_motion.cancel()
-            self.state.twist = np.zeros(6)
-            self.state.action = "stopped"
-            return
-        if self._pose_move is not None and not self._continue_pose_move(action):
-            self._pose_move = None
-        if self._pose_move is not None:
-            self.safety.heartbeat_command(t)
-            return
-        if isinstance(action, PoseAction):
-            if self._pose_tried != since:  # once per command
-                self._pose_tried = since
-                if self._start_pose_move(action, t):
-                    self.safety.heartbeat_command(t)
-                    return
-            action = None  # reached, or the move could not start: hold still
-        skin = label is not None and label == self.state.gesture
-        if label is not None and not skin:
-            self.gesture_motion.cancel()  # another input took over
-        moves = isinstance(action, TwistAction | JointJog)
-        self._send_twist(label if moves else None, action, frame, t, dt, skin)
+            self._error(f"cannot go to the {name} pose while stopped: clear the stop first")
+            return False
+        started = self.drive.start_pose(PoseAction(name, hold_to_run=False), self.now)
+        self._read_robot()  # the next tick must see the move, not the state before it
+        return started
 
-    def _send_twist(
-        self,
-        label: str | None,
-        action: Any,
-        frame: str | None,
-        t: float,
-        dt: float,
-        skin: bool = False,
-    ) -> None:
+    def apply_input(self, event: InputEvent, t: float | None = None) -> None:
+        """Apply ``event`` now (at session time ``t``, default the session clock)."""
+        self._apply_input(event, self.now if t is None else float(t))
+
+    def _apply_input(self, event: InputEvent, t: float) -> None:
+        if event.counts:
+            self.count_command(t, event.source, event.name, event.kind)
+        try:
+            if event.kind == "press":
+                action = resolve_input(event, self.mapping, self.safety.model.jacobian is not None)
+                if self.inputs.press(event, action, t):
+                    self._say(f"{t:8.2f} s  {event.source}: {event.name}")
+            elif event.kind == "release":
+                self.inputs.release(event.name)
+            elif event.kind == "step":
+                self.inputs.held = None
+                self._step(event, t)
+            elif event.kind == "go_to":
+                self.inputs.held = None
+                self.go_to_pose(event.name)
+            elif event.kind == "gripper":
+                self.inputs.gripper(event.name, t, self.safety, self._say, self._error)
+            elif event.kind == "speed":
+                self.set_speed_scale(1.0 if event.amount is None else event.amount)
+            else:
+                self._say(f"{t:8.2f} s  {event.source}: {event.name}")
+        except ConfigError as exc:
+            self._error(f"{event.source}: {exc}")
+        self.state.held = self.inputs.held_label
+
+    def _step(self, event: InputEvent, t: float) -> None:
+        """Move by a fixed increment: a joint move to the goal of ``event``."""
         robot = self.state.robot
-        target = np.zeros(6)
-        doing = f"twist {label}" if label is not None else "-"
-        if label is not None and robot is not None:
-            target = self._target_twist(action, frame, robot) * self.speed_scale
-            if skin:  # the gestures' speed profile (control/profile.py)
-                target = target * self.gesture_motion.speed_fraction(t)
-        elif robot is not None and self.gesture_motion.nudging:
-            s = self.mapping.settings
-            nudge = self.gesture_motion.nudge_target(
-                t, robot.tcp, self.shaper.twist, self.shaper.release_stop_s,
-                (s.linear_accel, s.angular_accel),
-            )  # fmt: skip
-            if nudge is not None:
-                target = nudge * self.speed_scale
-                doing = "nudge"
-        step = min(dt, self.settings.max_shaper_dt_s)
-        twist = self.shaper.update(target, step)
-        self.gesture_motion.add_way(twist, step)
-        self.state.action = doing
-        try:
-            self.safety.send_twist(twist)
-        except (RobotError, ValueError) as exc:
-            self._robot_failed(exc)
-            return
-        self.state.twist = np.asarray(twist, dtype=float)
-        self.safety.heartbeat_command(t)
+        if self.safety.stopped:
+            raise ConfigError("cannot step while stopped: clear the stop first")
+        if robot is None:
+            raise ConfigError("cannot step: no robot state yet")
+        goal = step_goal(np.asarray(robot.q, dtype=float), event, self.mapping, self.safety.model)
+        if self.drive.start_step(goal, event.name, t):
+            self._read_robot()
+        else:
+            self._report_new_stops()
 
-    def _robot_failed(self, exc: Exception) -> None:
-        self._error(f"robot: {exc}")
-        self._pose_move = None
-        self.shaper.reset()
-        self.state.twist = np.zeros(6)
-        try:
-            self.safety.stop()
-        except RobotError as again:
-            self._error(f"robot: stop failed: {again}")
+    # -- the robot's state, its stops and the messages
 
     def _read_robot(self) -> None:
         try:
             self.state.robot = self.safety.state()
         except RobotError as exc:
             self._error(f"robot: {exc}")
-
-    # -- safety bookkeeping
 
     def _check_watchdogs(self, now: float) -> None:
         try:
@@ -514,37 +441,24 @@ class ControlSession(PoseMoves, SessionRecording, SessionInputs, SessionViews):
         stops = self.safety.stops
         for stop in stops[self._stops_seen :]:
             self.state.stops.append(stop)
-            self._message(f"{stop.t:8.2f} s  STOP ({stop.source}): {stop.reason}")
-            if self.recorder is not None:
-                payload = {"reason": stop.reason, "source": stop.source}
-                self.recorder.add_annotation("stops", float(stop.t), payload)
+            self._say(f"{stop.t:8.2f} s  STOP ({stop.source}): {stop.reason}")
+            self.record.note("stops", stop.t, {"reason": stop.reason, "source": stop.source})
         self._stops_seen = len(stops)
         self.state.stopped = self.safety.stopped
 
     def _clear_recovered_stops(self) -> None:
         """A watchdog stop ends once frames flow again and no command is active."""
-        active = self.state.gesture is not None or self._held is not None
+        active = self.state.gesture is not None or self.inputs.held is not None
         if self._user_stop or not self.safety.stopped or active:
             return
         last = self.safety.stops[-1] if self.safety.stops else None
         self.safety.clear_stop()
         self.shaper.reset()
         why = f" ({last.reason})" if last is not None else ""
-        self._message(f"{self._now:8.2f} s  recovered from the stop{why}")
+        self._say(f"{self.now:8.2f} s  recovered from the stop{why}")
 
-    # -- reporting
-
-    def _message(self, text: str) -> None:
-        self.state.messages.append(text)
-        self._on_message(text)
+    def _say(self, text: str) -> None:
+        self.report.say(text)
 
     def _error(self, text: str) -> None:
-        line = " ".join(str(text).split())
-        self.state.errors += 1
-        self.state.last_error = line
-        now = self._wall()
-        if now - self._error_times.get(line, -np.inf) >= self.settings.error_repeat_s:
-            self._error_times[line] = now
-            self._message(f"error: {line}")
-        if self.recorder is not None:
-            self.recorder.add_annotation("errors", self._now, {"message": line})
+        self.report.warn(text)

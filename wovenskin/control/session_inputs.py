@@ -2,8 +2,9 @@
 
 A :class:`CommandInput` is polled by :class:`~wovenskin.control.session.ControlSession`
 once per control tick, at the tick's session time, and returns :class:`InputEvent` s.
-:class:`SessionInputs` (a part of the session) applies them through the same path as the
-skin's gestures: a ``press`` holds an action (a gesture name, an action written as in the
+:class:`Inputs` (a part of the session) holds the devices, the held input, the command
+count and the gripper's state; the session applies each event through the same path as
+the skin's gestures: a ``press`` holds an action (a gesture name, an action written as in the
 mapping file such as ``"translate +x"``, or a joint jog ``"joint 3 +"``) until its
 ``release``, like a gesture until lift-off, with the twist shaped by the session's
 ``TwistShaper`` and sent through its ``SafetyLayer``; ``step`` moves by a fixed increment
@@ -14,7 +15,7 @@ held input and the skin's gesture is the active command.
 
 Commands are counted as the paper defines them: every discrete input (a gesture's
 activation, a key press, a panel operation, a gripper toggle) is one
-:class:`CommandRecord` ``(t, source, name, kind)`` in :attr:`SessionInputs.command_log`;
+:class:`CommandRecord` ``(t, source, name, kind)`` in :attr:`Inputs.command_log`;
 a release or a key's auto-repeat is none.
 """
 
@@ -23,14 +24,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
 from wovenskin.control.mapping import FRAMES, Action, TwistAction
-from wovenskin.control.session_poses import PoseMove
 from wovenskin.errors import ConfigError
-from wovenskin.robots.base import N_JOINTS, RobotError, RobotState, rotation_angle
+from wovenskin.robots.base import N_JOINTS, RobotError, rotation_angle
 
 INPUT_KINDS = ("press", "release", "step", "go_to", "gripper", "speed", "mode")
 INPUT_FRAMES = (*FRAMES, "joint")
@@ -114,17 +114,19 @@ class HeldInput:
 
     @property
     def label(self) -> str:
-        return f"{self.event.name} ({self.event.source})"
+        """What is held and from where: the action (``"translate +x (keyboard)"``), or
+        the name pressed when it has none."""
+        what = self.action if self.action is not None else self.event.name
+        return f"{what} ({self.event.source})"
 
 
-class SessionInputs:
-    """The inputs of :class:`~wovenskin.control.session.ControlSession` (module doc)."""
+class Inputs:
+    """The inputs beside the skin (module docstring): devices, what is held, the commands
+    counted and the gripper's state. It moves nothing itself: the session applies the
+    events (:meth:`~wovenskin.control.session.ControlSession.apply_input`)."""
 
-    _held: HeldInput | None
-    _pose_move: PoseMove | None
-
-    def _init_inputs(self, inputs: Iterable[CommandInput]) -> None:
-        self.inputs: list[CommandInput] = list(inputs)
+    def __init__(self, devices: Iterable[CommandInput] = ()) -> None:
+        self.devices: list[CommandInput] = list(devices)
         self.command_log: list[CommandRecord] = []
         self.gripper_closed = False
         # on_gripper(closed) drives the gripper; default: the arm's own (set_gripper), if any
@@ -132,187 +134,138 @@ class SessionInputs:
         # the frame the skin's gestures are read in, over the mapping's motion.frame (None:
         # the mapping's; "skin": the skin-registered mapping a study may compare)
         self.gesture_frame: str | None = None
-        self._held = None
+        self.held: HeldInput | None = None
 
-    def add_input(self, source: CommandInput) -> None:
-        """Poll ``source`` every tick from now on."""
-        self.inputs.append(source)
+    def poll(self, t: float) -> list[InputEvent]:
+        """Every device's events since the last poll, at session time ``t``."""
+        return [event for device in self.devices for event in device.poll(t)]
+
+    def count(self, t: float, source: str, name: str, kind: str) -> CommandRecord:
+        """Count one command (the paper's definition) and return its record."""
+        record = CommandRecord(float(t), source, name, kind)
+        self.command_log.append(record)
+        return record
 
     @property
-    def command_count(self) -> int:
-        """Commands so far, as the paper counts them (discrete inputs)."""
-        return len(self.command_log)
-
-    @property
-    def held_input(self) -> str | None:
+    def held_label(self) -> str | None:
         """The held input's label (``"translate +x (keyboard)"``), or ``None``."""
-        return None if self._held is None else self._held.label
+        return None if self.held is None else self.held.label
 
-    def count_command(self, t: float, source: str, name: str, kind: str) -> None:
-        """Count one command and log it (and into the recording, when one runs)."""
-        self.command_log.append(CommandRecord(float(t), source, name, kind))
-        if self.recorder is not None:
-            payload = {"source": source, "name": name, "kind": kind}
-            self.recorder.add_annotation("inputs", float(t), payload)
+    def press(self, event: InputEvent, action: Action | JointJog | None, t: float) -> bool:
+        """Hold ``event``'s ``action`` from ``t``; ``False`` when it is already held (a
+        repeated press keeps its start)."""
+        if self.held is not None and self.held.event.name == event.name:
+            return False
+        self.held = HeldInput(event, action, t)
+        return True
 
-    def apply_input(self, event: InputEvent, t: float | None = None) -> None:
-        """Apply ``event`` now (at session time ``t``, default the session clock)."""
-        self._apply_input(event, self._now if t is None else float(t))
+    def release(self, name: str) -> None:
+        """End the held input named ``name`` (``""``: whatever is held)."""
+        if self.held is not None and name in ("", self.held.event.name):
+            self.held = None
 
-    def _poll_inputs(self, t: float) -> None:
-        for source in self.inputs:
-            for event in source.poll(t):
-                self._apply_input(event, t)
-
-    def _apply_input(self, event: InputEvent, t: float) -> None:
-        if event.counts:
-            self.count_command(t, event.source, event.name, event.kind)
-        try:
-            if event.kind == "press":
-                self._press(event, t)
-            elif event.kind == "release":
-                if self._held is not None and event.name in ("", self._held.event.name):
-                    self._held = None
-            elif event.kind == "step":
-                self._held = None
-                self._step(event, t)
-            elif event.kind == "go_to":
-                self._held = None
-                self.go_to_pose(event.name)
-            elif event.kind == "gripper":
-                self._gripper(event.name, t)
-            elif event.kind == "speed":
-                self.set_speed_scale(1.0 if event.amount is None else event.amount)
-            else:
-                self._message(f"{t:8.2f} s  {event.source}: {event.name}")
-        except ConfigError as exc:
-            self._error(f"{event.source}: {exc}")
-        self.state.held = self.held_input
-
-    def _press(self, event: InputEvent, t: float) -> None:
-        if self._held is not None and self._held.event.name == event.name:
-            return  # already held (a repeated press): keep its start
-        action: Action | JointJog | None = parse_joint(event.name)
-        if action is None:
-            if event.frame == "joint":
-                raise ConfigError(f"{event.name!r} is no joint jog ('joint N +')")
-            action = self.mapping.resolve(event.name)
-        elif self.safety.model.jacobian is None:
-            raise ConfigError("joint jogging needs the arm's kinematics (a Jacobian)")
-        self._held = HeldInput(event, action, t)
-        self._message(f"{t:8.2f} s  {event.source}: {event.name}")
-
-    def _active_command(self) -> tuple[str | None, Any, str | None, float | None]:
-        """The active command: label, action, frame and start of the newest of the held
-        input and the skin's gesture (``None`` s when there is none)."""
-        gesture, since = self.state.gesture, self.state.gesture_since
-        held = self._held
-        if held is not None and (gesture is None or since is None or held.since >= since):
-            frame = held.event.frame if held.event.frame in FRAMES else None
-            return held.label, held.action, frame, held.since
-        if gesture is None:
-            return None, None, None, None
-        return gesture, self.mapping.action_for(gesture), self.gesture_frame, since
-
-    def _target_twist(self, action: Any, frame: str | None, robot: RobotState) -> np.ndarray:
-        """Full-speed base-frame twist of a twist action or a joint jog."""
-        if not isinstance(action, JointJog):
-            return np.asarray(self.mapping.twist_of(action, robot.tcp, frame), dtype=float)
-        jacobian = self.safety.model.jacobian_at(np.asarray(robot.q, dtype=float))
-        if jacobian is None:
-            return np.zeros(6)
-        settings = self.mapping.settings
-        twist = np.asarray(jacobian, dtype=float)[:, action.joint] * action.sign
-        twist = twist * settings.angular_speed
-        linear = float(np.linalg.norm(twist[:3]))
-        if linear > settings.linear_speed:  # a far TCP: keep it at the linear speed
-            twist *= settings.linear_speed / linear
-        return twist
-
-    # -- steps and the gripper
-
-    def _step(self, event: InputEvent, t: float) -> None:
-        robot = self.state.robot
-        if self.safety.stopped:
-            raise ConfigError("cannot step while stopped: clear the stop first")
-        if robot is None:
-            raise ConfigError("cannot step: no robot state yet")
-        if event.amount is None or not event.amount > 0.0:
-            raise ConfigError(f"a step needs a positive amount, got {event.amount!r}")
-        q = np.asarray(robot.q, dtype=float)
-        jog = parse_joint(event.name)
-        if jog is not None:
-            goal = q.copy()
-            goal[jog.joint] += jog.sign * float(event.amount)
-        else:
-            action = self.mapping.resolve(event.name)
-            if not isinstance(action, TwistAction):
-                raise ConfigError(f"cannot step {event.name!r}: it is no translation or turn")
-            goal = self._cartesian_goal(q, action, event.frame, float(event.amount))
-        self._pose_move = None
-        self.shaper.reset()
-        self.state.twist = np.zeros(6)
-        try:
-            self.safety.move_to_joints(goal, self.settings.pose_speed_fraction * self.speed_scale)
-        except (RobotError, ValueError) as exc:
-            self._robot_failed(exc)
-            self._report_new_stops()
-            return
-        self._pose_move = PoseMove(f"{event.name} step", hold_to_run=False, started_t=t)
-        self.state.action = f"step {event.name}"
-        self._read_robot()
-
-    def _cartesian_goal(
-        self, q: np.ndarray, action: TwistAction, frame: str | None, amount: float
-    ) -> np.ndarray:
-        """Joint angles that move the TCP by ``amount`` along (or about) the action's axis
-        in ``frame``, by Newton steps on the declared kinematics."""
-        forward, jacobian = self.safety.model.forward, self.safety.model.jacobian
-        if forward is None or jacobian is None:
-            raise ConfigError("steps in base or tool frame need the arm's kinematics")
-        start = np.asarray(forward(q), dtype=float)
-        axis = np.asarray(action.axis, dtype=float)
-        frame = self.mapping.settings.frame if frame not in FRAMES else frame
-        if frame == "skin":
-            axis = start[:3, :3] @ (self.mapping.settings.skin_rotation() @ axis)
-        elif frame == "tool":
-            axis = start[:3, :3] @ axis
-        position, rotation = start[:3, 3].copy(), start[:3, :3]
-        if action.kind == "translate":
-            position += axis * amount
-        else:
-            rotation = rotation_matrix(axis * amount) @ rotation
-        goal = q.copy()
-        for _ in range(NEWTON_STEPS):
-            now = np.asarray(forward(goal), dtype=float)
-            error = np.concatenate(
-                [position - now[:3, 3], rotation_vector(rotation @ now[:3, :3].T)]
-            )
-            if float(np.linalg.norm(error)) < 1e-10:
-                break
-            goal = goal + np.linalg.lstsq(np.asarray(jacobian(goal), float), error, rcond=None)[0]
-        return goal
-
-    def gripper_was_opened(self) -> None:
-        """The gripper was opened outside the inputs (a task scene's reset opens it): the
-        next toggle closes it."""
-        self.gripper_closed = False
-
-    def _gripper(self, command: str, t: float) -> None:
+    def gripper(
+        self, command: str, t: float, safety: Any, say: Callable[[str], None],
+        warn: Callable[[str], None],
+    ) -> None:  # fmt: skip
+        """``toggle``, ``open`` or ``close`` the gripper: through :attr:`on_gripper`, else
+        the arm's own through the safety layer (refused while stopped), if it has one."""
         if command not in GRIPPER_COMMANDS:
             raise ConfigError(f"unknown gripper command {command!r}: use toggle, open or close")
         closed = not self.gripper_closed if command == "toggle" else command == "close"
         self.gripper_closed = closed
-        self._message(f"{t:8.2f} s  gripper {'closes' if closed else 'opens'}")
+        say(f"{t:8.2f} s  gripper {'closes' if closed else 'opens'}")
         drive = self.on_gripper
-        if drive is None and self.safety.capabilities().gripper:
-            drive = self.safety.set_gripper  # through the safety layer (refused while stopped)
+        if drive is None and safety.capabilities().gripper:
+            drive = safety.set_gripper
         if drive is None:
             return
         try:
             drive(closed)
         except (RobotError, ValueError) as exc:
-            self._error(f"gripper: {exc}")
+            warn(f"gripper: {exc}")
+
+
+class ActiveCommand(NamedTuple):
+    """The command acting now: its label, action, the frame its axis is read in (None:
+    the mapping's) and when it began; all ``None`` when none acts."""
+
+    label: str | None = None
+    action: Any = None
+    frame: str | None = None
+    since: float | None = None
+
+
+def active_command(
+    inputs: Inputs, gesture: str | None, since: float | None, mapping: Any
+) -> ActiveCommand:
+    """The newer of the held input and the skin's ``gesture`` (begun at ``since``)."""
+    held = inputs.held
+    if held is not None and (gesture is None or since is None or held.since >= since):
+        frame = held.event.frame if held.event.frame in FRAMES else None
+        return ActiveCommand(held.label, held.action, frame, held.since)
+    if gesture is None:
+        return ActiveCommand()
+    return ActiveCommand(gesture, mapping.action_for(gesture), inputs.gesture_frame, since)
+
+
+def resolve_input(event: InputEvent, mapping: Any, has_jacobian: bool) -> Action | JointJog | None:
+    """The action a pressed ``event`` holds: a joint jog (which needs the arm's Jacobian),
+    else a gesture name or an action written as in the mapping file."""
+    jog = parse_joint(event.name)
+    if jog is None:
+        if event.frame == "joint":
+            raise ConfigError(f"{event.name!r} is no joint jog ('joint N +')")
+        return mapping.resolve(event.name)
+    if not has_jacobian:
+        raise ConfigError("joint jogging needs the arm's kinematics (a Jacobian)")
+    return jog
+
+
+def step_goal(q: np.ndarray, event: InputEvent, mapping: Any, model: Any) -> np.ndarray:
+    """The joint angles a ``step`` event moves to from ``q``: a joint jog's turn, or the
+    TCP moved by ``event.amount`` along (or about) an action's axis in its frame."""
+    if event.amount is None or not event.amount > 0.0:
+        raise ConfigError(f"a step needs a positive amount, got {event.amount!r}")
+    jog = parse_joint(event.name)
+    if jog is not None:
+        goal = np.array(q, dtype=float)
+        goal[jog.joint] += jog.sign * float(event.amount)
+        return goal
+    action = mapping.resolve(event.name)
+    if not isinstance(action, TwistAction):
+        raise ConfigError(f"cannot step {event.name!r}: it is no translation or turn")
+    return cartesian_goal(q, action, event.frame, float(event.amount), mapping, model)
+
+
+def cartesian_goal(
+    q: np.ndarray, action: TwistAction, frame: str | None, amount: float, mapping: Any, model: Any
+) -> np.ndarray:
+    """Joint angles that move the TCP by ``amount`` along (or about) the action's axis in
+    ``frame``, by Newton steps on the arm's declared kinematics (``model``)."""
+    forward, jacobian = model.forward, model.jacobian
+    if forward is None or jacobian is None:
+        raise ConfigError("steps in base or tool frame need the arm's kinematics")
+    start = np.asarray(forward(q), dtype=float)
+    axis = np.asarray(action.axis, dtype=float)
+    frame = mapping.settings.frame if frame not in FRAMES else frame
+    if frame == "skin":
+        axis = start[:3, :3] @ (mapping.settings.skin_rotation() @ axis)
+    elif frame == "tool":
+        axis = start[:3, :3] @ axis
+    position, rotation = start[:3, 3].copy(), start[:3, :3]
+    if action.kind == "translate":
+        position += axis * amount
+    else:
+        rotation = rotation_matrix(axis * amount) @ rotation
+    goal = np.array(q, dtype=float)
+    for _ in range(NEWTON_STEPS):
+        now = np.asarray(forward(goal), dtype=float)
+        error = np.concatenate([position - now[:3, 3], rotation_vector(rotation @ now[:3, :3].T)])
+        if float(np.linalg.norm(error)) < 1e-10:
+            break
+        goal = goal + np.linalg.lstsq(np.asarray(jacobian(goal), float), error, rcond=None)[0]
+    return goal
 
 
 def rotation_matrix(vector: np.ndarray) -> np.ndarray:

@@ -1,13 +1,15 @@
-"""The pose moves of a control session: joint moves to the stored home and initial poses.
+"""A control session's pose moves: joint moves to the stored home and initial poses.
 
-:class:`PoseMoves` is the part of :class:`~wovenskin.control.session.ControlSession` that
-starts a move (a pose gesture, or the dashboard's go-home button), keeps it going while its
-command lasts (hold to run) or until the pose is reached (to completion), and stores the
-arm's current pose.  It uses the session's safety layer, shaper, state and messages.
+:class:`PoseMover` starts a move (a pose gesture, the dashboard's go-home button, an
+input's step), says each tick whether it goes on (while its command lasts when it is
+hold-to-run, until the pose is reached when it runs to completion) and stores the arm's
+current pose. It moves the arm only through the session's safety layer; a refusal is
+raised for the session to handle as any robot error.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -15,8 +17,7 @@ import numpy as np
 
 from wovenskin.control.mapping import PoseAction
 from wovenskin.control.poses import PoseStore, set_pose_from_robot
-from wovenskin.errors import ConfigError
-from wovenskin.robots.base import Robot, RobotError
+from wovenskin.control.safety import SafetyLayer
 
 
 @dataclass
@@ -28,82 +29,62 @@ class PoseMove:
     started_t: float
 
 
-class PoseMoves:
-    """Pose moves of :class:`~wovenskin.control.session.ControlSession` (see the module doc)."""
+class PoseMover:
+    """Pose moves through ``safety`` to the poses of ``poses`` (or the arm's declared ones)."""
 
-    _pose_move: PoseMove | None
+    def __init__(
+        self,
+        safety: SafetyLayer,
+        poses: PoseStore | None,
+        say: Callable[[str], None],
+        warn: Callable[[str], None],
+    ) -> None:
+        self.safety = safety
+        self.poses = poses
+        self._say, self._warn = say, warn
+        self.move: PoseMove | None = None
 
-    def go_to_pose(self, name: str) -> bool:
-        """Start a move to the stored ``name`` pose that runs to completion (the dashboard's
-        go-home button); a gesture, the stop key or a watchdog ends it.  Returns whether
-        the move started: not while stopped, nor without a stored (or built-in) pose."""
-        if name not in ("home", "initial"):
-            raise ConfigError(f"unknown pose {name!r}: use home or initial")
-        if self.safety.stopped:
-            self._error(f"cannot go to the {name} pose while stopped: clear the stop first")
-            return False
-        self._pose_move = None
-        started = self._start_pose_move(PoseAction(name, hold_to_run=False), self._now)
-        self._read_robot()  # the next tick must see the move, not the state before it
-        return started
+    def stored(self, name: str) -> np.ndarray | None:
+        """The joints of the ``name`` pose: stored, else the backend's declared default
+        (``RobotCapabilities.default_poses``), else ``None`` with one line saying how to
+        store one."""
+        stored = self.poses.get(name) if self.poses is not None else None
+        if stored is not None:
+            return np.asarray(stored.q, dtype=float)
+        default = self.safety.capabilities().default_poses.get(name)
+        if default is not None:
+            return np.asarray(default, dtype=float)
+        self._warn(f"no stored {name!r} pose: store one with `wovenskin pose set {name}`")
+        return None
 
-    def store_pose(self, name: str) -> None:
+    def start_joints(self, q: np.ndarray, move: PoseMove, speed_fraction: float) -> None:
+        """Start a joint move to ``q`` (a pose, an input's step) recorded as ``move``."""
+        self.move = None
+        self.safety.move_to_joints(q, speed_fraction)
+        self.move = move
+
+    def goes_on(self, action: Any, robot_moving: bool, started_tick: bool, now: float) -> bool:
+        """Whether the running move goes on this tick (``action``: the active command's;
+        ``started_tick``: this is the tick it started on). Ends it, stopping the arm, when
+        its command ended (hold to run) or another one took over; raises ``RobotError``
+        when that stop fails."""
+        move = self.move
+        assert move is not None
+        same = isinstance(action, PoseAction) and action.name == move.name
+        if same or (action is None and not move.hold_to_run):
+            if not robot_moving and not started_tick:
+                self._say(f"{now:8.2f} s  reached the {move.name} pose")
+                self.move = None
+                return False
+            return True
+        self.move = None
+        self.safety.stop()
+        return False
+
+    def store(self, name: str) -> None:
         """Store the arm's current joints as the ``name`` pose (``PoseStore`` file)."""
         if self.poses is None:
             self.poses = PoseStore.load()
         stored = set_pose_from_robot(self.poses, name, self.safety)
         degrees = ", ".join(f"{v:.1f}" for v in np.degrees(stored.q))
-        self._message(f"stored the {name} pose ({degrees} deg) in {self.poses.path}")
-
-    def _start_pose_move(self, action: PoseAction, t: float) -> bool:
-        q = self._stored_pose(action.name)
-        if q is None:
-            return False
-        self.shaper.reset()
-        self.state.twist = np.zeros(6)
-        try:
-            self.safety.move_to_joints(q, self.settings.pose_speed_fraction * self.speed_scale)
-        except (RobotError, ValueError) as exc:
-            self._robot_failed(exc)
-            return False
-        self._pose_move = PoseMove(action.name, action.hold_to_run, t)
-        mode = "hold to run" if action.hold_to_run else "to completion"
-        self.state.action = f"move to {action.name} ({mode})"
-        self._message(f"{t:8.2f} s  moving to the {action.name} pose ({mode})")
-        return True
-
-    def _continue_pose_move(self, action: Any) -> bool:
-        """Whether the running pose move goes on this tick; stops it when it must end."""
-        move = self._pose_move
-        assert move is not None
-        same = isinstance(action, PoseAction) and action.name == move.name
-        if same or (action is None and not move.hold_to_run):
-            robot = self.state.robot
-            if robot is not None and not robot.moving and self._tick_t != move.started_t:
-                self.state.action = "-"
-                self._message(f"{self._now:8.2f} s  reached the {move.name} pose")
-                return False
-            return True
-        try:  # the command ended (hold to run) or another one took over
-            self.safety.stop()
-        except RobotError as exc:
-            self._robot_failed(exc)
-        self.state.action = "-"
-        return False
-
-    def _stored_pose(self, name: str) -> np.ndarray | None:
-        stored = self.poses.get(name) if self.poses is not None else None
-        if stored is not None:
-            return np.asarray(stored.q, dtype=float)
-        default = _declared_default_pose(self.robot, name)
-        if default is not None:
-            return default
-        self._error(f"no stored {name!r} pose: store one with `wovenskin pose set {name}`")
-        return None
-
-
-def _declared_default_pose(robot: Robot, name: str) -> np.ndarray | None:
-    """The backend's declared pose ``name`` (``RobotCapabilities.default_poses``: the
-    simulated arm's home and initial poses) when none is stored."""
-    pose = robot.capabilities().default_poses.get(name)
-    return None if pose is None else np.asarray(pose, dtype=float)
+        self._say(f"stored the {name} pose ({degrees} deg) in {self.poses.path}")

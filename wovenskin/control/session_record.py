@@ -1,95 +1,83 @@
-"""What a control session writes into its recording, and the predictions views show.
+"""A control session's recording: started and stopped while it runs, and the notes its
+parts write into it (commands, inputs, predictions, robot state, stops).
 
-:class:`SessionRecording` is the part of :class:`~wovenskin.control.session.ControlSession`
-that starts and stops a ``.wsrec`` recording while the session runs and, per block and
-tick, keeps the recogniser's latest probabilities (and its hesitation,
-:func:`~wovenskin.control.session_state.unsure_line`) for the views and writes them and
-the robot's state as annotations.
+:class:`SessionRecorder` holds the ``.wsrec`` writer (the one the ``LiveSkin`` also writes
+raw frames into) or none; :meth:`SessionRecorder.note` writes an annotation when a
+recording runs and does nothing otherwise, so no part has to ask.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from wovenskin.control.session_state import UNSURE_HOLD_S, min_probability_of, unsure_line
+from wovenskin.control.session_state import SessionState
 from wovenskin.recording.writer import RecordingWriter
 
 
-class SessionRecording:
-    """Recording and predictions of :class:`~wovenskin.control.session.ControlSession`."""
+class SessionRecorder:
+    """The session's recording, if one runs (see the module docstring)."""
+
+    def __init__(
+        self, live_skin: Any, writer: Any = None, say: Callable[[str], None] = print
+    ) -> None:
+        self._live_skin = live_skin
+        self.writer = writer
+        self.context: dict[str, Any] = {}  # what a recording started later writes as settings
+        self._say = say
 
     @property
-    def recording(self) -> bool:
-        return self.recorder is not None
+    def active(self) -> bool:
+        return self.writer is not None
 
-    def start_recording(self, path: str | Path, overwrite: bool = False) -> Path:
+    def start(self, path: str | Path, overwrite: bool = False) -> Path:
         """Write raw frames, predictions, commands, robot state and stops to ``path``
         (``.wsrec``) from now on; ``FileExistsError`` unless ``overwrite``."""
-        if self.recorder is not None:
-            raise RuntimeError(f"already recording to {self.recorder.path}")
-        settings = {"conditioning": self.live_skin.config.to_dict(), **self.recording_context}
-        recorder = RecordingWriter(
-            path, self.live_skin.info, {"skin_source": "live"}, settings, overwrite=overwrite
+        if self.writer is not None:
+            raise RuntimeError(f"already recording to {self.writer.path}")
+        settings = {"conditioning": self._live_skin.config.to_dict(), **self.context}
+        writer = RecordingWriter(
+            path, self._live_skin.info, {"skin_source": "live"}, settings, overwrite=overwrite
         )
-        self.recorder = recorder
-        self.live_skin.recorder = recorder
-        self._message(f"recording to {recorder.path}")
-        return Path(recorder.path)
+        self.writer = writer
+        self._live_skin.recorder = writer
+        self._say(f"recording to {writer.path}")
+        return Path(writer.path)
 
-    def stop_recording(self) -> Path | None:
+    def stop(self) -> Path | None:
         """Close the recording (every frame so far is on disk); returns its path."""
-        recorder, self.recorder = self.recorder, None
-        self.live_skin.recorder = None
-        if recorder is None:
+        writer, self.writer = self.writer, None
+        self._live_skin.recorder = None
+        if writer is None:
             return None
-        recorder.close()
-        self._message(f"recording saved: {recorder.path}")
-        return Path(recorder.path)
+        writer.close()
+        self._say(f"recording saved: {writer.path}")
+        return Path(writer.path)
 
-    def _record_predictions(self, t: float) -> None:
-        probabilities = getattr(self.pipeline, "latest_probabilities", None)
-        if probabilities is None:
-            return
-        probabilities = np.asarray(probabilities, dtype=np.float32)
-        self.state.probabilities = probabilities
-        if probabilities.size and self.state.class_names:
-            k = int(np.argmax(probabilities))
-            self.state.top = (self.state.class_names[k], float(probabilities[k]))
-            self._note_unsure(t, probabilities)
-        if self.recorder is not None:
-            top, p = self.state.top
-            payload = {"top": top, "p": p, "probabilities": probabilities}
-            self.recorder.add_annotation("predictions", t, payload)
+    def note(self, stream: str, t: float, payload: Any) -> None:
+        """Annotate the recording at session time ``t``, when one runs."""
+        if self.writer is not None:
+            self.writer.add_annotation(stream, float(t), payload)
 
-    def _note_unsure(self, t: float, probabilities: np.ndarray) -> None:
-        """Keep the recogniser's hesitation for the views: while fingers are on the skin
-        and no command runs, the two likeliest gestures when the best one is at least
-        :data:`UNSURE_FLOOR` but would not fire (below the model's ``min_probability``,
-        or ``invalid`` ranks first).  The line stays :data:`UNSURE_HOLD_S` after the touch,
-        so a user sees how the gesture was read and can draw it better."""
-        names = self.state.class_names
-        if self.state.gesture is not None:
-            self.state.unsure, self.state.unsure_t = "", None
-            return
-        line = unsure_line(probabilities, names, min_probability_of(self.pipeline))
-        contacts = getattr(getattr(self.live_skin, "state", None), "contacts", None)
-        if line and contacts:
-            self.state.unsure, self.state.unsure_t = line, t
-        elif self.state.unsure_t is not None and t - self.state.unsure_t > UNSURE_HOLD_S:
-            self.state.unsure, self.state.unsure_t = "", None
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
 
-    def _record_robot(self, t: float) -> None:
-        robot = self.state.robot
-        assert robot is not None
-        payload = {
-            "q": np.asarray(robot.q, dtype=np.float64),
-            "tcp": np.asarray(robot.tcp.position, dtype=np.float64),
-            "quat": np.asarray(robot.tcp.quat, dtype=np.float64),
-            "tcp_speed": robot.tcp_speed,
-            "twist_command": np.asarray(self.state.twist, dtype=np.float64),
-            "gesture": self.state.gesture,
-            "robot_t": float(robot.t),  # the backend's clock: ties stream time to the arm's
-        }
-        self.recorder.add_annotation("robot", t, payload)
+
+def robot_payload(state: SessionState) -> dict[str, Any]:
+    """What a tick records of the robot: joints, TCP pose and speed, the commanded twist,
+    the gesture, and the backend's clock (which ties stream time to the arm's)."""
+    robot = state.robot
+    assert robot is not None
+    return {
+        "q": np.asarray(robot.q, dtype=np.float64),
+        "tcp": np.asarray(robot.tcp.position, dtype=np.float64),
+        "quat": np.asarray(robot.tcp.quat, dtype=np.float64),
+        "tcp_speed": robot.tcp_speed,
+        "twist_command": np.asarray(state.twist, dtype=np.float64),
+        "gesture": state.gesture,
+        "robot_t": float(robot.t),
+    }

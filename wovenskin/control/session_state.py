@@ -2,12 +2,14 @@
 
 :class:`SessionSettings` (how the loop turns commands into motion), :class:`SessionState`
 (the newest tick's inputs and outputs, for views), :class:`SessionResult` (the figures of a
-finished session) and :func:`unsure_line` (the recogniser's hesitation, for views).
+finished session), :func:`unsure_line` (the recogniser's hesitation, for views) and
+:func:`update_predictions`; :class:`Reporter` says its messages and errors.
 """
 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -113,3 +115,63 @@ def min_probability_of(pipeline: Any) -> float:
     """The arbiter's ``min_probability`` (0 when the pipeline does not say)."""
     settings = getattr(getattr(pipeline, "settings", None), "arbiter", None)
     return float(getattr(settings, "min_probability", 0.0) or 0.0)
+
+
+def update_predictions(
+    state: SessionState,
+    probabilities: np.ndarray,
+    min_probability: float,
+    touching: bool,
+    t: float,
+) -> None:
+    """Keep the recogniser's newest ``probabilities`` for the views: the top class and,
+    while fingers are on the skin (``touching``) and no command runs, its hesitation
+    (:func:`unsure_line`), which stays :data:`UNSURE_HOLD_S` after the touch so a user sees
+    how the gesture was read and can draw it better."""
+    state.probabilities = probabilities
+    names = state.class_names
+    if not (probabilities.size and names):
+        return
+    k = int(np.argmax(probabilities))
+    state.top = (names[k], float(probabilities[k]))
+    if state.gesture is not None:
+        state.unsure, state.unsure_t = "", None
+        return
+    line = unsure_line(probabilities, names, min_probability)
+    if line and touching:
+        state.unsure, state.unsure_t = line, t
+    elif state.unsure_t is not None and t - state.unsure_t > UNSURE_HOLD_S:
+        state.unsure, state.unsure_t = "", None
+
+
+class Reporter:
+    """The session's messages and errors: into the state (for views), to ``on_message``
+    (a terminal), and errors also to ``note`` (the recording); the same error line at
+    most once every ``repeat_s`` of wall time."""
+
+    def __init__(
+        self,
+        state: SessionState,
+        on_message: Callable[[str], None],
+        wall: Callable[[], float],
+        repeat_s: float,
+        note: Callable[[str, float, Any], None],
+        now: Callable[[], float],
+    ) -> None:
+        self._state, self._on_message, self._wall = state, on_message, wall
+        self._repeat_s, self._note, self._now = repeat_s, note, now
+        self._error_times: dict[str, float] = {}
+
+    def say(self, text: str) -> None:
+        self._state.messages.append(text)
+        self._on_message(text)
+
+    def warn(self, text: str) -> None:
+        line = " ".join(str(text).split())
+        self._state.errors += 1
+        self._state.last_error = line
+        now = self._wall()
+        if now - self._error_times.get(line, -np.inf) >= self._repeat_s:
+            self._error_times[line] = now
+            self.say(f"error: {line}")
+        self._note("errors", self._now(), {"message": line})

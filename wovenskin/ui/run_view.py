@@ -97,7 +97,7 @@ def run_with_view(
     """Run ``session`` with the live view until it ends, ``q``, Ctrl-C or ``seconds``;
     ``keyboard``: the keys that drive the arm (added to the session's inputs)."""
     console = console or Console()
-    if keyboard is not None and keyboard not in session.inputs:
+    if keyboard is not None and keyboard not in session.inputs.devices:
         session.add_input(keyboard)
     period = 1.0 / fps
     session.start()
