@@ -16,29 +16,38 @@ from wovenskin.errors import ConfigError
 INVALID = "invalid"
 
 
+MOTIONS = ("swipe", "press", "circle", "pinch")
+
+
 @dataclass(frozen=True)
 class GestureSpec:
-    """A gesture: its stable name and how many fingers perform it."""
+    """A gesture: its stable name, how many fingers perform it and how they move
+    (``swipe``, ``press``, ``circle`` or ``pinch``: the fingers close or spread)."""
 
     name: str
     fingers: int
+    motion: str
+
+    def __post_init__(self) -> None:
+        if self.motion not in MOTIONS:
+            raise ValueError(f"gesture motion must be one of {MOTIONS}, got {self.motion!r}")
 
 
 GESTURES: tuple[GestureSpec, ...] = (
-    GestureSpec("swipe_up", 1),
-    GestureSpec("swipe_down", 1),
-    GestureSpec("swipe_right", 1),
-    GestureSpec("swipe_left", 1),
-    GestureSpec("pinch_in_2f", 2),
-    GestureSpec("push", 1),
-    GestureSpec("swipe_up_2f", 2),
-    GestureSpec("swipe_down_2f", 2),
-    GestureSpec("swipe_right_2f", 2),
-    GestureSpec("swipe_left_2f", 2),
-    GestureSpec("circle_cw_2f", 2),
-    GestureSpec("circle_ccw_2f", 2),
-    GestureSpec("pinch_in_5f", 5),
-    GestureSpec("pinch_out_5f", 5),
+    GestureSpec("swipe_up", 1, "swipe"),
+    GestureSpec("swipe_down", 1, "swipe"),
+    GestureSpec("swipe_right", 1, "swipe"),
+    GestureSpec("swipe_left", 1, "swipe"),
+    GestureSpec("pinch_in_2f", 2, "pinch"),
+    GestureSpec("push", 1, "press"),
+    GestureSpec("swipe_up_2f", 2, "swipe"),
+    GestureSpec("swipe_down_2f", 2, "swipe"),
+    GestureSpec("swipe_right_2f", 2, "swipe"),
+    GestureSpec("swipe_left_2f", 2, "swipe"),
+    GestureSpec("circle_cw_2f", 2, "circle"),
+    GestureSpec("circle_ccw_2f", 2, "circle"),
+    GestureSpec("pinch_in_5f", 5, "pinch"),
+    GestureSpec("pinch_out_5f", 5, "pinch"),
 )
 
 GESTURE_NAMES: tuple[str, ...] = tuple(g.name for g in GESTURES)

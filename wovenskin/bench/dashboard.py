@@ -43,7 +43,7 @@ import numpy as np
 from rich.table import Table
 
 from wovenskin.bench.results import figure_table
-from wovenskin.gestures import GESTURE_NAMES
+from wovenskin.gestures import GESTURE_NAMES, GESTURES
 from wovenskin.runtime.session import open_session
 from wovenskin.sim.motion import minimum_jerk
 from wovenskin.sim.performances import perform
@@ -263,12 +263,9 @@ def _draw(client: _Client, name: str, rng: np.random.Generator) -> float:
     return t0
 
 
-MOUSE_GESTURES = (
-    "swipe_up", "swipe_down", "swipe_left", "swipe_right", "push",
-    "swipe_up_2f", "swipe_down_2f", "swipe_left_2f", "swipe_right_2f",
-    "circle_cw_2f", "circle_ccw_2f",
-)  # fmt: skip
-"""What the page's mouse can draw (pinches need the wheel's spread, not a stroke)."""
+MOUSE_GESTURES = tuple(g.name for g in GESTURES if g.motion != "pinch")
+"""What the page's mouse can draw: every gesture of the vocabulary but the pinches, which
+need the wheel's spread, not a stroke."""
 DENSE_PERIOD_S = 0.008  # a quiet page: a pointer sample every 8 ms
 SPARSE_SAMPLES = (3, 13)  # a busy page: this many samples per stroke
 MOUSE_FORCE_N = 0.2 + 2.8 * 0.35  # the page's force at the slider's default pressure
