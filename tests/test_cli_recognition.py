@@ -11,10 +11,9 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from typer.testing import CliRunner
+from cli_helpers import invoke, one_line_error
 
 from wovenskin.bench import model as bench_model
-from wovenskin.cli import app
 from wovenskin.recognition.checkpoint_meta import read_meta
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.sim.stream import simulate_stream
@@ -24,7 +23,6 @@ from wovenskin.training.datasets import generate_sim_dataset, open_dataset
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 
-runner = CliRunner()
 TINY_SET = ["--recordings", "3", "--windows", "40", "--invalid-windows", "10", "--seconds", "20"]
 TINY_HPARAMS = {
     "transformer": {"n_layers": 1, "ff_dim": 32, "d_model": 16, "n_heads": 2, "stem_channels": 8},
@@ -32,16 +30,6 @@ TINY_HPARAMS = {
     "tcn": {"dim": 16, "n_blocks": 2, "stem_channels": 8},
 }
 TINY_TRAIN = ["--epochs", "1", "--batch-size", "32", "--threads", "1"]
-
-
-def invoke(*args: str):
-    return runner.invoke(app, [str(a) for a in args])
-
-
-def one_line_error(result, message: str) -> None:
-    assert result.exit_code == 2, result.output
-    assert message in result.stderr
-    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output
 
 
 @pytest.fixture(scope="module")

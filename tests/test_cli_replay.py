@@ -7,39 +7,22 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
+from tiny_models import save_tiny_model
 from typer.testing import CliRunner
 
 from wovenskin.cli import app
-from wovenskin.gestures import CLASS_NAMES
 from wovenskin.recognition import shipped
-from wovenskin.recognition.checkpoint_meta import CheckpointMeta
 from wovenskin.recognition.commandlog import format_command_log, parse_command_log
 from wovenskin.recognition.pipeline import PipelineSettings, load_recognizer, run_pipeline
 from wovenskin.recording.formats import write_labelled_stream
-from wovenskin.signal import ConditioningConfig
 from wovenskin.sim.stream import simulate_stream
-from wovenskin.training.checkpoint import save_checkpoint
-from wovenskin.training.models import build_model
 
 runner = CliRunner()
 
 
 @pytest.fixture(scope="module")
 def model_dir(tmp_path_factory) -> Path:
-    directory = tmp_path_factory.mktemp("model")
-    torch.manual_seed(2)
-    hparams = {"dim": 16, "n_blocks": 2, "stem_channels": 8}
-    model = build_model("tcn", 10, 10, 30, len(CLASS_NAMES), **hparams)
-    with torch.no_grad():
-        last = [m for m in model.modules() if isinstance(m, torch.nn.Linear)][-1]
-        last.weight.mul_(30.0)
-        last.bias.mul_(30.0)
-    meta = CheckpointMeta(
-        "tcn", hparams, CLASS_NAMES, 10, 10, 30, 200.0, ConditioningConfig().to_dict()
-    )
-    save_checkpoint(directory, model, meta)
-    return directory
+    return save_tiny_model(tmp_path_factory.mktemp("model"), seed=2, decisive=True)
 
 
 @pytest.fixture(scope="module")

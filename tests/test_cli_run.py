@@ -10,46 +10,20 @@ import json
 from pathlib import Path
 
 import pytest
-import torch
-from typer.testing import CliRunner
+from cli_helpers import invoke, one_line_error
+from tiny_models import save_tiny_model
 
-from wovenskin.cli import app
 from wovenskin.control.trace import TRACE_KEYS, read_trace
 from wovenskin.gestures import CLASS_NAMES
-from wovenskin.recognition.checkpoint_meta import CheckpointMeta
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.recording.native import read_recording
-from wovenskin.signal import ConditioningConfig
 from wovenskin.sim.stream import simulate_stream
-from wovenskin.training.checkpoint import save_checkpoint
-from wovenskin.training.models import build_model
-
-runner = CliRunner()
-
-
-def invoke(*args):
-    return runner.invoke(app, [str(a) for a in args])
-
-
-def one_line_error(result, message: str) -> None:
-    assert result.exit_code == 2, result.output
-    assert message in result.stderr
-    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output
 
 
 @pytest.fixture(scope="module")
 def model_dir(tmp_path_factory) -> Path:
     """A tiny untrained TCN checkpoint with model.onnx (as in the pipeline tests)."""
-    directory = tmp_path_factory.mktemp("model")
-    torch.manual_seed(1)
-    hparams = {"dim": 16, "n_blocks": 2, "stem_channels": 8}
-    model = build_model("tcn", 10, 10, 30, len(CLASS_NAMES), **hparams)
-    meta = CheckpointMeta(
-        model_name="tcn", hparams=hparams, class_names=CLASS_NAMES, rows=10, cols=10,
-        window=30, sample_rate_hz=200.0, conditioning=ConditioningConfig().to_dict(),
-    )  # fmt: skip
-    save_checkpoint(directory, model, meta)
-    return directory
+    return save_tiny_model(tmp_path_factory.mktemp("model"), seed=1)
 
 
 @pytest.fixture(scope="module")

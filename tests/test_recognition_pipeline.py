@@ -7,11 +7,10 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-import torch
+from tiny_models import save_tiny_model
 
 from wovenskin.gestures import CLASS_NAMES, INVALID
 from wovenskin.recognition.arbiter import DWELL, LIFT_OFF
-from wovenskin.recognition.checkpoint_meta import CheckpointMeta
 from wovenskin.recognition.event_scoring import score_stream
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.recognition.pipeline import (
@@ -29,31 +28,11 @@ from wovenskin.runtime.sources import open_source
 from wovenskin.signal import ConditioningConfig
 from wovenskin.signal.live_skin import LiveBlock, LiveSkin
 from wovenskin.sim.stream import simulate_stream
-from wovenskin.training.checkpoint import save_checkpoint
-from wovenskin.training.models import build_model
 
 
 def make_model(directory: Path, conditioning: dict | None = None) -> Path:
     """A tiny untrained TCN whose logits spread widely, so its classes change often."""
-    torch.manual_seed(1)
-    hparams = {"dim": 16, "n_blocks": 2, "stem_channels": 8}
-    model = build_model("tcn", 10, 10, 30, len(CLASS_NAMES), **hparams)
-    with torch.no_grad():
-        last = [m for m in model.modules() if isinstance(m, torch.nn.Linear)][-1]
-        last.weight.mul_(30.0)
-        last.bias.mul_(30.0)
-    meta = CheckpointMeta(
-        model_name="tcn",
-        hparams=hparams,
-        class_names=CLASS_NAMES,
-        rows=10,
-        cols=10,
-        window=30,
-        sample_rate_hz=200.0,
-        conditioning=ConditioningConfig().to_dict() if conditioning is None else conditioning,
-    )
-    save_checkpoint(directory, model, meta)
-    return directory
+    return save_tiny_model(directory, seed=1, decisive=True, conditioning=conditioning)
 
 
 @pytest.fixture(scope="module")

@@ -6,17 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tiny_models import save_tiny_model
 
-from wovenskin.gestures import CLASS_NAMES
-from wovenskin.recognition.checkpoint_meta import CheckpointMeta
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.recognition.streaming import StreamingRecognizer, model_window
 from wovenskin.signal import ConditioningConfig
-from wovenskin.training.checkpoint import save_checkpoint
-from wovenskin.training.models import build_model
 
 ROWS, COLS, W = 4, 5, 6
 CLASSES = ("swipe_up", "push", "invalid")
@@ -163,21 +159,7 @@ def test_bad_input_and_bad_models_give_one_line_errors() -> None:
 
 @pytest.fixture(scope="module")
 def onnx_model(tmp_path_factory) -> Path:
-    directory = tmp_path_factory.mktemp("model")
-    torch.manual_seed(0)
-    model = build_model("tcn", 10, 10, 30, len(CLASS_NAMES), dim=16, n_blocks=2, stem_channels=8)
-    meta = CheckpointMeta(
-        model_name="tcn",
-        hparams={"dim": 16, "n_blocks": 2, "stem_channels": 8},
-        class_names=CLASS_NAMES,
-        rows=10,
-        cols=10,
-        window=30,
-        sample_rate_hz=200.0,
-        conditioning=ConditioningConfig().to_dict(),
-    )
-    save_checkpoint(directory, model, meta)
-    return directory
+    return save_tiny_model(tmp_path_factory.mktemp("model"), seed=0)
 
 
 def test_onnx_recognizer_is_checked_against_the_stream(onnx_model: Path) -> None:

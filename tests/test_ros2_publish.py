@@ -17,14 +17,13 @@ import types
 import numpy as np
 import pytest
 from stand_ins import ContactMeans, wait_until
-from typer.testing import CliRunner
 
 pytest.importorskip("cyclonedds", reason="the ROS 2 publisher needs wovenskin[ros2]")
 pytest.importorskip("rosbags", reason="the wire format is checked against rosbags")
 
+from cli_helpers import invoke  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
-from wovenskin.cli import app  # noqa: E402
 from wovenskin.gestures import CLASS_NAMES  # noqa: E402
 from wovenskin.recording.formats import write_labelled_stream  # noqa: E402
 from wovenskin.ros2 import messages  # noqa: E402
@@ -305,13 +304,6 @@ def test_settings_from_the_command_line_value() -> None:
     assert chosen == SkinTopics(50, 20, 20, 0, "/skin/left", 7)
     assert chosen.topic("frames") == "/skin/left/frames"
     assert SkinTopics(ns="wovenskin/").topic("gesture") == "/wovenskin/gesture"
-
-
-runner = CliRunner()
-
-
-def invoke(*args):
-    return runner.invoke(app, [str(a) for a in args])
 
 
 @pytest.mark.parametrize(
