@@ -78,7 +78,7 @@ def test_record_with_a_mapping_on_the_command_line(tmp_path) -> None:
     ]  # fmt: skip
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
-    assert "1 labelled trials (0 without contact)" in result.output
+    assert "1 labelled trial (0 without contact)" in result.output
     assert [label.label for label in read_recording(out).labels if label.kind == "trial"] == [
         "double_tap"
     ]

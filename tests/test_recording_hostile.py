@@ -1,11 +1,16 @@
 """Hostile files: crafted contents behind valid checksums never crash a reader.
 
 Every reader a command uses (``info``, ``convert``, ``replay``, ``eval-stream``, ``run
---skin replay:``, ``dataset``, ``train --captures``) either reads a file or refuses it
-with a one-line ``ValueError`` (``FormatError``) naming the file: never an ``IndexError``,
-``OverflowError``, ``RecursionError``, ``MemoryError`` or ``TypeError`` traceback.  One
-reader (``recording.files``) decides what a file is, so every command reports the same
-line for the same bad file.
+--skin replay:``, ``dataset``, ``train --captures``, and ``read_bag`` for ``.mcap`` bags)
+either reads a file or refuses it with a one-line ``ValueError`` (``FormatError``) naming
+the file: never an ``IndexError``, ``OverflowError``, ``RecursionError``, ``MemoryError``
+or ``TypeError`` traceback.  A crafted file (``CRAFTED``, and the byte-level bags here) is
+refused by every reader: a reader that accepts one fails
+``test_every_reader_refuses_every_crafted_file``.  ``file_kind`` only names a file's kind
+from its magic or member names (nothing is loaded), so it may name a crafted file's kind;
+it must not crash on one.  One reader (``recording.files``) decides what a file is, so
+every command reports the same line for the same bad file.  The bags crafted message by
+message (bad headers, images, times, documents) are ``test_recording_bag``'s hostile bags.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from wovenskin.cli import app
+from wovenskin.recording.bag import MCAP_MAGIC, read_bag
 from wovenskin.recording.documents import decode_document
 from wovenskin.recording.files import file_kind, read_any, read_captures, read_stream
 from wovenskin.recording.formats import read_labelled_captures, read_labelled_stream
@@ -57,7 +63,7 @@ READERS = {
     "read_recording": read_recording,
     "read_labelled_stream": read_labelled_stream,
     "read_labelled_captures": read_labelled_captures,
-    "file_kind": file_kind,
+    "read_bag": read_bag,
     "read_any": read_any,
     "read_stream": read_stream,
     "read_captures": read_captures,
@@ -66,6 +72,20 @@ READERS = {
     "convert to npz": _convert_npz,
     "convert to wsrec": _convert_wsrec,
 }
+"""Every function that reads a file's contents: each must refuse every crafted file."""
+SNIFFERS = {"file_kind": file_kind}
+"""Functions that only name a file's kind (magic, member names): one line or a kind."""
+BAG_MAGIC_THEN_ZEROS = MCAP_MAGIC + bytes(100)
+HOSTILE = {
+    **CRAFTED,
+    "magic then zeros.mcap": BAG_MAGIC_THEN_ZEROS,
+    "magic then random.mcap": MCAP_MAGIC + bytes(range(256)) * 2,
+    "random bytes.mcap": bytes(range(256)) * 4,
+    "empty.mcap": b"",
+    "a bag named npz.npz": BAG_MAGIC_THEN_ZEROS,
+    "a bag named wsrec.wsrec": BAG_MAGIC_THEN_ZEROS,
+}
+"""The crafted files and the byte-level crafted bags (name -> bytes)."""
 
 
 def outcome(reader, path: Path) -> str | None:
@@ -80,12 +100,27 @@ def outcome(reader, path: Path) -> str | None:
     return None
 
 
-@pytest.mark.parametrize("name", sorted(CRAFTED))
+@pytest.mark.parametrize("name", sorted(HOSTILE))
 @pytest.mark.parametrize("reader", sorted(READERS))
-def test_every_reader_refuses_crafted_files_in_one_line(tmp_path, name, reader):
+def test_every_reader_refuses_every_crafted_file(tmp_path, name, reader):
     path = tmp_path / name
-    path.write_bytes(CRAFTED[name])
-    outcome(READERS[reader], path)  # a ValueError of one line, or reading it
+    path.write_bytes(HOSTILE[name])
+    refusal = outcome(READERS[reader], path)
+    assert refusal is not None, f"{reader} accepted the crafted file {name!r}"
+    assert str(path) in refusal, refusal  # the line names the file
+
+
+@pytest.mark.parametrize("name", sorted(HOSTILE))
+def test_naming_a_crafted_files_kind_never_crashes(tmp_path, name):
+    path = tmp_path / name
+    path.write_bytes(HOSTILE[name])
+    for sniff in SNIFFERS.values():
+        try:
+            kind = sniff(path)
+        except ValueError as exc:
+            assert "\n" not in str(exc) and str(path) in str(exc), repr(str(exc))
+        else:
+            assert kind in ("recording", "stream", "captures")
 
 
 @pytest.mark.parametrize("name", sorted(CRAFTED))
@@ -238,7 +273,7 @@ def _check_all_readers(data: bytes, suffix: str) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"fuzz{suffix}"
         path.write_bytes(data)
-        for reader in READERS.values():
+        for reader in (*READERS.values(), *SNIFFERS.values()):
             outcome(reader, path)
 
 

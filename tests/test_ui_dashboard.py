@@ -25,15 +25,10 @@ from wovenskin.sim.pty_skin import FakeSkinDevice
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.skin.layout import SkinLayout
 from wovenskin.ui.dashboard import server
+from wovenskin.ui.dashboard.page_touch import parse_touch_message, parse_touches
 from wovenskin.ui.dashboard.runner import DashboardRunner
 from wovenskin.ui.dashboard.scene import ArmScene
-from wovenskin.ui.dashboard.server import (
-    create_app,
-    loopback_host,
-    needs_token,
-    parse_touch_message,
-    parse_touches,
-)
+from wovenskin.ui.dashboard.server import create_app, loopback_host, needs_token
 
 
 class LocalClient(TestClient):

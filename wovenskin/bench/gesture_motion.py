@@ -34,6 +34,7 @@ from wovenskin.bench.independent import gesture_stream
 from wovenskin.bench.stops import STOP_REST_ANGULAR_RAD_S, STOP_REST_LINEAR_M_S
 from wovenskin.control.mapping import MotionSettings
 from wovenskin.control.session import ControlSession
+from wovenskin.recognition.pipeline import PipelineSettings
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.runtime.session import open_session
 
@@ -118,7 +119,14 @@ def analyse_ticks(
     return travel, brake, rest, still_moving
 
 
-def run_gesture_stream(recognizer: Any, request: str, seed: int, kind: str, folder: Path):
+def run_gesture_stream(
+    recognizer: Any,
+    request: str,
+    seed: int,
+    kind: str,
+    folder: Path,
+    settings: PipelineSettings | None = None,
+):
     """One single-gesture stream through a session on the simulated arm."""
     stream = gesture_stream(request, seed)
     event = stream.metadata["events"][0]
@@ -138,8 +146,9 @@ def run_gesture_stream(recognizer: Any, request: str, seed: int, kind: str, fold
         )  # fmt: skip
 
     session = open_session(
-        f"replay:{path}", "sim", recognizer=recognizer, fast_replay=True, on_tick=on_tick
-    )
+        f"replay:{path}", "sim", recognizer=recognizer, fast_replay=True, on_tick=on_tick,
+        pipeline_settings=settings,
+    )  # fmt: skip
     try:
         session.run()
     finally:
@@ -216,9 +225,11 @@ def run_motion(
     hold_s: float = 2.5,
     progress: Callable[[str], None] | None = None,
     save_dir: Path | None = None,
+    settings: PipelineSettings | None = None,
 ) -> list[GestureMotion]:
     """``flicks`` flicks and ``held`` held swipes (directions in turn), each its own stream
-    (seeds ``seed + 1000 + k`` and ``seed + 2000 + k``), through sessions."""
+    (seeds ``seed + 1000 + k`` and ``seed + 2000 + k``), through sessions run with
+    ``settings`` (default: the model's own)."""
     plan = [("flick", f"swipe_{DIRECTIONS[k % 4]}:flick", seed + 1000 + k) for k in range(flicks)]
     plan += [
         ("held_swipe", f"swipe_{DIRECTIONS[k % 4]}:held={hold_s:g}", seed + 2000 + k)
@@ -230,5 +241,7 @@ def run_motion(
         for k, (kind, request, stream_seed) in enumerate(plan):
             if progress is not None:
                 progress(f"{kind} {k + 1} of {len(plan)} through the simulated arm")
-            runs.append(run_gesture_stream(recognizer, request, stream_seed, kind, folder))
+            runs.append(
+                run_gesture_stream(recognizer, request, stream_seed, kind, folder, settings)
+            )
     return runs

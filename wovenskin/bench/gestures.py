@@ -34,7 +34,11 @@ from wovenskin.errors import ConfigError
 from wovenskin.gestures import INVALID
 from wovenskin.io import to_jsonable
 from wovenskin.recognition.event_scoring import EventScores, aggregate, score_commands, score_stream
-from wovenskin.recognition.pipeline import PipelineSettings, run_pipeline
+from wovenskin.recognition.pipeline import (
+    PipelineSettings,
+    pipeline_settings_for_model,
+    run_pipeline,
+)
 from wovenskin.recording.formats import LabelledStream, write_labelled_stream
 
 Progress = Callable[[str], None]
@@ -220,7 +224,10 @@ def run_gestures_benchmark(
     save_dir: str | Path | None = None,
 ) -> GesturesBenchResult:
     """Recognition on ``streams`` mixed streams and motion of ``flicks`` flicks and ``held``
-    held swipes (``hold_s`` still after the motion); ``save_dir`` keeps every stream."""
+    held swipes (``hold_s`` still after the motion); ``save_dir`` keeps every stream.
+    ``settings`` default to the model's own (``pipeline_settings_for_model``)."""
+    if settings is None:
+        settings = pipeline_settings_for_model(recognizer)
     if streams < 0 or flicks < 0 or held < 0:
         raise ConfigError("--streams, --flicks and --held must be >= 0")
     if streams and not seconds >= 10.0:
@@ -246,7 +253,7 @@ def run_gestures_benchmark(
         result.recall_by_kind = pool_kinds(details)
     if flicks or held:
         runs: list[GestureMotion] = run_motion(
-            recognizer, flicks, held, seed, hold_s, progress, folder
+            recognizer, flicks, held, seed, hold_s, progress, folder, settings
         )
         for kind in ("flick", "held_swipe"):
             of_kind = [r for r in runs if r.kind == kind]

@@ -54,8 +54,7 @@ from wovenskin.bench.conditions import (
 from wovenskin.errors import ConfigError
 from wovenskin.recognition.event_scoring import EventScores, aggregate, score_stream
 from wovenskin.recognition.pipeline import (
-    PipelineSettings,
-    arbiter_settings_for_model,
+    pipeline_settings_for_model,
     run_pipeline,
 )
 
@@ -320,7 +319,7 @@ def run_recognition_benchmark(
     names = condition_names(conditions)
     index = {name: i for i, name in enumerate(CONDITIONS)}
     if settings is None:
-        settings = PipelineSettings(arbiter=arbiter_settings_for_model(recognizer))
+        settings = pipeline_settings_for_model(recognizer)
     checkpoint = getattr(recognizer, "checkpoint_dir", None)
     result = RecognitionBenchResult(
         model=str(checkpoint.resolve()) if checkpoint is not None else type(recognizer).__name__,

@@ -18,6 +18,7 @@ from rich.progress import (
 from wovenskin.cli.app import app, console, err_console, require_torch, user_errors
 from wovenskin.errors import ConfigError
 from wovenskin.io import to_jsonable
+from wovenskin.outputs import check_writable
 from wovenskin.training.adapt_settings import AdaptSettings
 
 DEFAULTS = AdaptSettings()
@@ -71,6 +72,7 @@ def adapt(
     out_has_model = (out / "meta.json").is_file() or (out / "adapt.json").is_file()
     if out_has_model and not overwrite:
         raise ConfigError(f"{out} already holds an adapted model; give --overwrite to replace it")
+    check_writable(out, folder=True)  # refused now, not after the adapting
     settings = AdaptSettings(
         held_out_fraction=held_out, seed=seed, threads=threads, force=force, epochs=epochs,
         user_windows=windows, rehearsal_recordings=rehearsal,

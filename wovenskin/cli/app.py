@@ -171,12 +171,20 @@ ROBOT_HELP = (
 )
 
 
-def pipeline_settings(recognizer, every: int, dwell_ms: float, min_probability: float | None):
-    """Pipeline settings: the options given, else the model's recommendation, else defaults."""
+def pipeline_settings(
+    recognizer,
+    every: int | None = None,
+    dwell_ms: float | None = None,
+    min_probability: float | None = None,
+):
+    """Pipeline settings: each option given, else the model's recommendation, else the
+    settings default (:func:`~wovenskin.recognition.pipeline.pipeline_settings_for_model`,
+    the one rule ``run``, the dashboard and the benchmarks use too).  ``None``: not given."""
     from wovenskin.recognition.pipeline import pipeline_settings_for_model  # keeps --help fast
 
+    dwell_s = None if dwell_ms is None else dwell_ms / 1000
     return pipeline_settings_for_model(
-        recognizer, every, dwell_s=dwell_ms / 1000, min_probability=min_probability
+        recognizer, every, dwell_s=dwell_s, min_probability=min_probability
     )
 
 

@@ -123,7 +123,7 @@ def bench_recognition(
 
     names = condition_names(conditions)
     recognizer = load_recognizer(model, threads=threads)
-    settings = pipeline_settings(recognizer, 1, 100.0, min_probability)
+    settings = pipeline_settings(recognizer, min_probability=min_probability)
     bar = Progress(
         TextColumn("{task.description}"),
         BarColumn(),
@@ -175,10 +175,14 @@ def bench_gestures(
     apart from the simulator): event F1, false activations, recall per class, latency;
     flicks and held swipes on the simulated TM5-900: moved, travel, brake and rest."""
     from wovenskin.bench.gestures import run_gestures_benchmark
+    from wovenskin.outputs import check_writable
     from wovenskin.recognition.pipeline import load_recognizer
 
+    if save_streams is not None:
+        check_writable(save_streams, folder=True)  # refused now, not after the streams
+
     recognizer = load_recognizer(model, threads=threads)
-    settings = pipeline_settings(recognizer, 1, 100.0, min_probability)
+    settings = pipeline_settings(recognizer, min_probability=min_probability)
     with err_console.status("bench gestures...") as status:
         result = run_gestures_benchmark(
             recognizer, settings, streams, seconds, seed, flicks, held, hold,
@@ -211,6 +215,9 @@ def bench_adapt(
     scored by the base and the adapted model (F1, false activations, latency), adapt's time."""
     require_torch("wovenskin bench adapt")
     from wovenskin.bench.adapt import run_adapt_benchmark
+    from wovenskin.outputs import check_writable
+
+    check_writable(out, folder=True)  # refused now, not after the recordings
 
     with err_console.status("bench adapt...") as status:
         result = run_adapt_benchmark(
@@ -231,6 +238,9 @@ def bench_ros2(
     """Replay a labelled stream through run --robot ros2: against a stand-in MoveIt Servo in
     another process (loopback only): every twist on the wire, lift-offs, joint-state loss."""
     from wovenskin.bench.ros2 import run_ros2_benchmark
+    from wovenskin.outputs import check_writable
+
+    check_writable(out, folder=True)  # refused now, not after the replay
 
     with err_console.status("bench ros2...") as status:
         result = run_ros2_benchmark(

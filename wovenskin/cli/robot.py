@@ -96,6 +96,7 @@ def run(
     if seconds is not None and not seconds > 0:
         raise ConfigError(f"--seconds must be positive, got {seconds}")
     topics = _ros2_topics(ros2_publish)
+    _check_outputs(trace, record, overwrite)
     if view == "dashboard":
         _run_dashboard(
             skin, robot, model, host=host, port=port, token=token, open_browser=open_browser,
@@ -213,6 +214,15 @@ def _has_desktop() -> bool:
     if sys.platform in ("darwin", "win32"):
         return True
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _check_outputs(trace: str | None, record: Path | None, overwrite: bool) -> None:
+    """The --trace and --record files can be written: refused now, not when the session opens."""
+    from wovenskin.outputs import check_new_output
+
+    for path in (None if trace in (None, "-") else trace, record):
+        if path is not None:
+            check_new_output(path, overwrite)
 
 
 def _run_dashboard(
@@ -368,8 +378,11 @@ def profile(
     from rich.table import Table
 
     from wovenskin.control.mapping import ActionMapping
+    from wovenskin.outputs import check_writable
     from wovenskin.ui.profile_plot import plot_profile, profile_rows
 
+    if plot is not None:
+        check_writable(plot)
     loaded = ActionMapping.load(mapping)
     speed = loaded.settings.profile
     table = Table(title=f"speed profile: {speed.kind} ({loaded.source})")

@@ -25,7 +25,7 @@ def view(
     full_scale: float = typer.Option(
         0.0, help="Relative change shown at full brightness (0: follow the signal)."
     ),
-    smoothing_ms: float = typer.Option(100.0, help="Moving-average length in ms."),
+    smoothing_ms: float = typer.Option(None, help="Moving-average length in ms (default 100)."),
     snapshot: Path = typer.Option(None, help="Save the last screen as an SVG file at exit."),
     overwrite: bool = typer.Option(False, help="Replace an existing --snapshot file."),
 ) -> None:
@@ -51,11 +51,12 @@ def view(
     )
 
 
-def _config_for(smoothing_ms: float):
-    """Conditioning settings, or None for the defaults at the source's own sample rate."""
+def _config_for(smoothing_ms: float | None):
+    """Conditioning settings, or None (``--smoothing-ms`` not given) for the defaults at the
+    source's own sample rate."""
     from wovenskin.signal.config import ConditioningConfig
 
-    if smoothing_ms == 100.0:
+    if smoothing_ms is None:
         return None
     return ConditioningConfig(smoothing_s=smoothing_ms / 1000)
 
@@ -66,8 +67,8 @@ def simulate(
     out: Path = typer.Option(..., help="Labelled-stream .npz to write (docs/formats.md)."),
     seconds: float = typer.Option(60.0, help="Length of the stream."),
     seed: int = typer.Option(1, help="Random seed: the same seed gives the same file."),
-    rows: int = typer.Option(10, help="Skin rows."),
-    cols: int = typer.Option(10, help="Skin columns."),
+    rows: int = typer.Option(None, help="Skin rows (default 10)."),
+    cols: int = typer.Option(None, help="Skin columns (default 10)."),
     gestures: str = typer.Option("", help="Comma-separated gestures to draw from (default: all)."),
     invalid_fraction: float = typer.Option(0.25, help="Share of events that are invalid touches."),
     overwrite: bool = typer.Option(False, help="Replace an existing file."),
@@ -80,7 +81,8 @@ def simulate(
     from wovenskin.skin.layout import SkinLayout
 
     names = [check_name(g.strip()) for g in gestures.split(",") if g.strip()] or None
-    layout = SkinLayout(rows, cols).check_supported(where="--rows/--cols")
+    grid = {key: value for key, value in (("rows", rows), ("cols", cols)) if value is not None}
+    layout = SkinLayout(**grid).check_supported(where="--rows/--cols")
     check_new_output(out, overwrite)  # before the simulation, not after it
     stream = simulate_stream(
         seconds,
@@ -106,7 +108,7 @@ def record(
     participant: str = typer.Option("anonymous", help="Who performs the gestures."),
     operator: str = typer.Option("", help="Who runs the session."),
     skin_id: str = typer.Option("", help="Which physical skin (default: the device id)."),
-    trials: int = typer.Option(3, help="Trials per gesture."),
+    trials: int = typer.Option(None, help="Trials per gesture (default 3)."),
     gestures: str = typer.Option(
         "", help="Comma-separated gestures (default: all 14, or every gesture of --mapping)."
     ),
@@ -114,10 +116,14 @@ def record(
         None,
         help="Mapping file: prompt its [gestures], custom ones (docs/custom-gestures.md) too.",
     ),
-    invalid_trials: int = typer.Option(3, help="Trials of deliberate invalid touches."),
-    countdown: float = typer.Option(2.0, help="Seconds of countdown before each trial."),
-    trial_seconds: float = typer.Option(3.0, help="Seconds to perform each trial."),
-    seed: int = typer.Option(0, help="Seed of the trial order."),
+    invalid_trials: int = typer.Option(
+        None, help="Trials of deliberate invalid touches (default 3)."
+    ),
+    countdown: float = typer.Option(
+        None, help="Seconds of countdown before each trial (default 2)."
+    ),
+    trial_seconds: float = typer.Option(None, help="Seconds to perform each trial (default 3)."),
+    seed: int = typer.Option(None, help="Seed of the trial order (default 0)."),
     notes: str = typer.Option("", help="Free notes kept in the recording."),
     overwrite: bool = typer.Option(False, help="Replace an existing file."),
 ) -> None:
@@ -129,21 +135,20 @@ def record(
     """
     from wovenskin.control.mapping import ActionMapping
     from wovenskin.gestures import GESTURE_NAMES, check_name
+    from wovenskin.outputs import check_new_output
     from wovenskin.ui.record_session import RecordPlan, run_record_session
 
+    check_new_output(out, overwrite)  # refused now, not after the session
     action_mapping = ActionMapping.load(mapping) if mapping is not None else None
     known = action_mapping.class_names if action_mapping is not None else None
     default = action_mapping.prompted() if action_mapping is not None else list(GESTURE_NAMES)
     names = [check_name(g.strip(), known) for g in gestures.split(",") if g.strip()] or default
     custom = action_mapping.custom if action_mapping is not None else {}
-    plan = RecordPlan(
-        gestures=names,
-        trials_per_gesture=trials,
-        invalid_trials=invalid_trials,
-        countdown_s=countdown,
-        trial_s=trial_seconds,
-        seed=seed,
-    )
+    given = {
+        "trials_per_gesture": trials, "invalid_trials": invalid_trials,
+        "countdown_s": countdown, "trial_s": trial_seconds, "seed": seed,
+    }  # fmt: skip
+    plan = RecordPlan(names, **{key: value for key, value in given.items() if value is not None})
     summary = run_record_session(
         out,
         skin,

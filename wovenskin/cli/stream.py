@@ -19,9 +19,13 @@ from wovenskin.cli.app import (
 )
 from wovenskin.errors import DataError
 
-# The options both commands share (one definition each).
-EVERY = typer.Option(1, help="Run the model on every K-th frame's window.")
-DWELL_MS = typer.Option(100.0, help="Dwell time before a gesture acts.")
+# The options both commands share (one definition each).  Unset (None), each falls through
+# to the model's recommendation (its meta.json), then to the settings' default
+# (PipelineSettings, ArbiterSettings): cli.app.pipeline_settings.
+EVERY = typer.Option(None, help="Run the model on every K-th frame's window (default 1).")
+DWELL_MS = typer.Option(
+    None, help="Dwell time before a gesture acts (default: the model's recommendation, else 100)."
+)
 MIN_PROBABILITY = typer.Option(
     None, help="Least class probability that counts (default: the model's recommendation)."
 )
@@ -32,9 +36,9 @@ MIN_PROBABILITY = typer.Option(
 def replay(
     stream: Path = typer.Argument(..., help="Labelled-stream .npz (or native .wsrec)."),
     model: Path = MODEL,
-    every: int = EVERY,
-    dwell_ms: float = DWELL_MS,
-    min_probability: float = MIN_PROBABILITY,
+    every: int | None = EVERY,
+    dwell_ms: float | None = DWELL_MS,
+    min_probability: float | None = MIN_PROBABILITY,
     threads: int = THREADS,
     json_out: bool = typer.Option(False, "--json", help="Print only the command log (JSON lines)."),
 ) -> None:
@@ -68,9 +72,9 @@ def replay(
 def eval_stream(
     streams: list[Path] = typer.Argument(..., help="Labelled-stream .npz files with events."),
     model: Path = MODEL,
-    every: int = EVERY,
-    dwell_ms: float = DWELL_MS,
-    min_probability: float = MIN_PROBABILITY,
+    every: int | None = EVERY,
+    dwell_ms: float | None = DWELL_MS,
+    min_probability: float | None = MIN_PROBABILITY,
     threads: int = THREADS,
     json_out: bool = JSON_OUT,
 ) -> None:
@@ -110,7 +114,7 @@ def eval_stream(
     if json_out:
         document = {
             "model": str(recognizer.checkpoint_dir.resolve()),
-            "settings": {"every": every, **asdict(settings.arbiter)},
+            "settings": {"every": settings.every, **asdict(settings.arbiter)},
             "streams": details,
             "total": total.to_dict(),
         }

@@ -11,6 +11,7 @@ from pathlib import Path
 import typer
 
 from wovenskin.cli.app import MODEL, SKIN_HELP, console, robot_errors, user_errors, warn
+from wovenskin.wording import quantity
 
 study_app = typer.Typer(
     help="User studies: definitions, counterbalanced plans, trial logs, reports (docs/study.md).",
@@ -46,7 +47,8 @@ def study_add_participant(
     from wovenskin.study.definition import add_participant
 
     study = add_participant(directory, participant, expertise, notes)
-    console.print(f"{participant} added; {len(study.participants)} participants in {study.name}")
+    people = quantity(len(study.participants), "participant")
+    console.print(f"{participant} added; {people} in {study.name}")
 
 
 @study_app.command("plan")
@@ -62,7 +64,8 @@ def study_plan_command(directory: Path = DIR) -> None:
     if not study.participants:
         warn("the study has no participants yet: `wovenskin study add-participant`")
     path, steps = write_plan(directory, study)
-    table = Table(title=f"{study.name}: run order ({study.trials_per_condition} trials each)")
+    each = quantity(study.trials_per_condition, "trial")
+    table = Table(title=f"{study.name}: run order ({each} each)")
     table.add_column("participant")
     table.add_column("expertise")
     table.add_column("run order (task: interfaces)")
@@ -76,7 +79,7 @@ def study_plan_command(directory: Path = DIR) -> None:
     block = block_size(len(study.interfaces), len(study.tasks))
     n = len(study.participants)
     if n % block:
-        warn(f"{n} participants: a multiple of {block} balances the orders fully")
+        warn(f"{quantity(n, 'participant')}: a multiple of {block} balances the orders fully")
     console.print(f"wrote {path}")
 
 
@@ -95,7 +98,9 @@ def study_report(
         warn(line)
     if report.synthetic:
         warn("this study is SYNTHETIC (wovenskin study synthetic): nothing in it was measured")
-    console.print(f"wrote {report.markdown}, {report.html} and {len(report.images)} PNGs")
+    console.print(
+        f"wrote {report.markdown}, {report.html} and {quantity(len(report.images), 'PNG')}"
+    )
 
 
 @study_app.command("simulate")
@@ -103,7 +108,9 @@ def study_report(
 def study_simulate(
     directory: Path = typer.Argument(..., help="A new folder for the simulated study."),
     participants: int = typer.Option(6, min=1, help="Simulated operators (novice, expert, ...)."),
-    trials: int = typer.Option(10, min=1, help="Trials per task and interface."),
+    trials: int = typer.Option(
+        None, min=1, help="Trials per task and interface (default 2; the paper ran 10)."
+    ),
     seed: int = typer.Option(0, help="Random seed (the same seed runs the same study)."),
     task: list[str] = typer.Option(["pick_place", "pour"], help="Tasks (repeat the option)."),
     interface: list[str] = typer.Option(
@@ -119,33 +126,70 @@ def study_simulate(
 ) -> None:
     """Run a whole study with SIMULATED operators (novices and experts with human timing)
     on the simulated arm and skin, headless and as fast as this computer runs; report it
-    with `wovenskin study report DIR`."""
+    with `wovenskin study report DIR`.  Ctrl-C stops it and keeps the finished trials."""
+    import time
+
+    from rich.markup import escape
     from rich.progress import Progress
 
-    from wovenskin.study.simulate import simulate_study
+    from wovenskin.cli.app import err_console
+    from wovenskin.study.simulate import (
+        TRIALS_PER_CONDITION,
+        StudyInterrupted,
+        estimate_wall_s,
+        simulate_study,
+    )
+    from wovenskin.wording import duration
 
+    trials = TRIALS_PER_CONDITION if trials is None else trials
     total = participants * trials * len(task) * len(interface)
+    guess = estimate_wall_s(participants, trials, len(task), tuple(interface), jobs, time_limit)
+    console.print(
+        f"{quantity(total, 'simulated trial')} ({quantity(participants, 'operator')} x "
+        f"{quantity(trials, 'trial')} x {quantity(len(task), 'task')} x "
+        f"{quantity(len(interface), 'interface')}), roughly {duration(guess)} with "
+        f"--jobs {jobs}; Ctrl-C stops and keeps the finished trials",
+        highlight=False,
+        soft_wrap=True,
+    )
+    started = time.perf_counter()
     with Progress(console=console, transient=True) as bar:
         job = bar.add_task("simulated trials", total=total)
+        done = [0]
 
         def advance(run) -> None:
             s = run.summary
+            done[0] += 1
+            left = (time.perf_counter() - started) / done[0] * (total - done[0])
             bar.console.print(
                 f"{s.participant} {s.task}/{s.interface} trial {s.trial}: {s.outcome}, "
-                f"{s.duration_s:.1f} s, {s.commands} commands ({run.wall_s:.0f} s to run)",
+                f"{s.duration_s:.1f} s, {quantity(s.commands, 'command')} "
+                f"({run.wall_s:.0f} s to run; {done[0]}/{total} done, about "
+                f"{duration(left)} left)",
                 highlight=False,
             )
             bar.advance(job)
 
-        study, runs = simulate_study(
-            directory, participants, seed, trials, tasks=tuple(task), interfaces=tuple(interface),
-            time_limit_s=time_limit, objects=objects, model=model, jobs=jobs,
-            overwrite=overwrite, progress=advance,
-        )  # fmt: skip
+        try:
+            study, runs = simulate_study(
+                directory, participants, seed, trials, tasks=tuple(task),
+                interfaces=tuple(interface), time_limit_s=time_limit, objects=objects,
+                model=model, jobs=jobs, overwrite=overwrite, progress=advance,
+            )  # fmt: skip
+        except StudyInterrupted as stopped:
+            bar.stop()
+            err_console.print(
+                f"[yellow]interrupted:[/] {escape(stopped.message())}",
+                soft_wrap=True, highlight=False,
+            )  # fmt: skip
+            raise typer.Exit(130) from None
     console.print(
-        f"wrote a SIMULATED study to {directory}: {len(runs)} trials of "
-        f"{len(study.participants)} simulated operators; report it with "
-        f"`wovenskin study report {directory}`"
+        f"wrote a SIMULATED study to {directory}: {quantity(len(runs), 'trial')} of "
+        f"{quantity(len(study.participants), 'simulated operator')} in "
+        f"{duration(time.perf_counter() - started)}; report it with "
+        f"`wovenskin study report {directory}`",
+        highlight=False,
+        soft_wrap=True,
     )
 
 
@@ -163,7 +207,8 @@ def study_synthetic(
 
     study = synthetic_study(directory, participants, seed, trials, overwrite)
     console.print(
-        f"wrote a SYNTHETIC study to {directory} ({len(study.participants)} participants); "
+        f"wrote a SYNTHETIC study to {directory} "
+        f"({quantity(len(study.participants), 'participant')}); "
         f"report it with `wovenskin study report {directory}`"
     )
 
@@ -245,4 +290,5 @@ def study_run(
             highlight=False,
         )
     if not block.done:
-        err_console.print(f"{len(block.summaries)} of {len(block.numbers)} trials finished")
+        finished = "trial" if len(block.numbers) == 1 else "trials"
+        err_console.print(f"{len(block.summaries)} of {len(block.numbers)} {finished} finished")

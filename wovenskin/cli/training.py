@@ -20,14 +20,7 @@ from rich.markup import escape
 from rich.progress import Progress
 from rich.table import Table
 
-from wovenskin.cli.app import (
-    app,
-    console,
-    err_console,
-    require_torch,
-    user_errors,
-    warn,
-)
+from wovenskin.cli.app import MODEL, app, console, err_console, require_torch, user_errors, warn
 from wovenskin.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -40,6 +33,22 @@ AMP_HELP = (
     "the CPU trains in float32."
 )
 SPLIT_HELP = "grouped (recordings, people and skins never seen in training) or random (85/15)."
+
+# TrainConfig's settings as options: unset (None) each falls through to TrainConfig's
+# default (training/config.py, the one home; tests/test_cli_defaults.py checks the help).
+BATCH_SIZE = typer.Option(None, help="Windows per training step (default 64).")
+LR = typer.Option(None, help="Peak learning rate: AdamW, warm-up, cosine decay (default 0.003).")
+PATIENCE = typer.Option(None, help="Epochs without a better validation score to stop (default 5).")
+SPLIT_SEED = typer.Option(None, help="Seed of the train/validation split (default 0).")
+SEED = typer.Option(None, help="Seed of initialisation, batch order, augmentation (default 0).")
+THREADS = typer.Option(None, help="Torch threads (default 1: fastest on a busy 2-core machine).")
+DEVICE = typer.Option(None, help=DEVICE_HELP + " Default: auto.")
+AMP = typer.Option(None, help=AMP_HELP + " Default: auto.")
+
+
+def _given(**options) -> dict:
+    """The options given on the command line (not None); the others take the defaults."""
+    return {key: value for key, value in options.items() if value is not None}
 
 
 def _json_object(text: str, option: str) -> dict:
@@ -98,9 +107,9 @@ def dataset(
     invalid_windows: int = typer.Option(400, help="Windows of the invalid class per recording."),
     seconds: float = typer.Option(120.0, help="Length of each simulated recording."),
     recipe: str = typer.Option(
-        "stream",
+        None,
         help="stream: windows at every position, labelled by what they show; "
-        "overlay: the paper's augmentation (gesture slices on background noise).",
+        "overlay: the paper's augmentation (gesture slices on background noise). Default: stream.",
     ),
     seed: int = typer.Option(0, help="Random seed: the same seed gives the same files."),
     workers: int = typer.Option(2, help="Worker processes."),
@@ -116,8 +125,7 @@ def dataset(
     from wovenskin.training.report import DatasetSummary
     from wovenskin.training.window_settings import WindowSettings
 
-    settings = WindowSettings(recipe=recipe)
-
+    settings = WindowSettings(**_given(recipe=recipe))
     files = [*(streams or []), *(more_streams or [])]
     if files and (rows is not None or cols is not None):
         raise ConfigError("--rows/--cols set a simulated skin's grid; streams bring their own")
@@ -153,25 +161,23 @@ def train(
     model: str = typer.Option(None, help="transformer (default), bilstm or tcn."),
     split: str = typer.Option("grouped", help=SPLIT_HELP),
     epochs: int = typer.Option(None, help="Most epochs (default 3); may stop sooner."),
-    batch_size: int = typer.Option(64, help="Windows per training step."),
-    lr: float = typer.Option(3e-3, help="Peak learning rate (AdamW, warm-up, cosine decay)."),
-    seed: int = typer.Option(0, help="Seed of initialisation, batch order and augmentation."),
-    patience: int = typer.Option(5, help="Epochs without a better validation score to stop."),
-    split_seed: int = typer.Option(0, help="Seed of the train/validation split."),
+    batch_size: int = BATCH_SIZE,
+    lr: float = LR,
+    seed: int = SEED,
+    patience: int = PATIENCE,
+    split_seed: int = SPLIT_SEED,
     hparams: str = typer.Option("", help="Model hyperparameters (JSON): '{\"n_layers\": 2}'."),
     resume: bool = typer.Option(False, help="Continue an interrupted run in the same --out."),
     time_budget: float = typer.Option(None, help="Minutes; no epoch starts that would overrun."),
-    threads: int = typer.Option(
-        1, help="Torch threads (one is fastest on a busy 2-core machine: measure)."
-    ),
+    threads: int = THREADS,
     overwrite: bool = typer.Option(False, help="Replace a trained model already in --out."),
     init_from: Path = typer.Option(
         None,
         help="Fine-tune: start from this checkpoint's weights (e.g. wovenskin/models/default); "
         "same model, hyperparameters and classes.",
     ),
-    device: str = typer.Option("auto", help=DEVICE_HELP),
-    amp: str = typer.Option("auto", help=AMP_HELP),
+    device: str = DEVICE,
+    amp: str = AMP,
 ) -> None:
     """Train a gesture classifier (PyTorch) with early stopping, checkpoints and resume.
 
@@ -185,13 +191,12 @@ def train(
     from wovenskin.training import distributed  # needs torch
     from wovenskin.training.compare import train_on_dataset
 
-    settings = {
-        "batch_size": batch_size, "lr": lr, "seed": seed, "patience": patience,
-        "split_seed": split_seed, "resume": resume, "threads": threads,
-        "time_budget_s": None if time_budget is None else 60 * time_budget,
-        "init_from": None if init_from is None else str(init_from),
-        "device": device, "amp": amp,
-    }  # fmt: skip
+    settings = _given(
+        batch_size=batch_size, lr=lr, seed=seed, patience=patience, split_seed=split_seed,
+        threads=threads, epochs=epochs, device=device, amp=amp,
+        time_budget_s=None if time_budget is None else 60 * time_budget,
+        init_from=None if init_from is None else str(init_from),
+    )  # fmt: skip
     if captures is not None:
         if data is not None:
             raise ConfigError("give --data or --captures, not both")
@@ -201,22 +206,17 @@ def train(
             raise ConfigError("--init-from fine-tunes on a window data set (--data), not captures")
         out = out or runs.default_captures_dir(captures)
         runs.check_checkpoint_dir(out, overwrite, resume)
-        # Captures keep their own recipe: only --model, --epochs, --seed, --threads,
-        # --resume, --device and --amp apply (CAPTURE_DEFAULTS for the rest).
-        config = replace(
-            CAPTURE_DEFAULTS.with_model(model), seed=seed, threads=threads, resume=resume,
-            epochs=CAPTURE_DEFAULTS.epochs if epochs is None else epochs,
-            device=device, amp=amp,
-        ).checked()  # fmt: skip
+        # Captures keep their own recipe (CAPTURE_DEFAULTS), which the options given change.
+        settings.pop("split_seed", None)  # captures are split by participant, not by seed
+        config = replace(CAPTURE_DEFAULTS.with_model(model), resume=resume, **settings).checked()
         _train_on_captures(captures, out, config, _hardware_line(config, distributed.SINGLE))
         return
     model = model or TrainConfig.model
     out = out or runs.default_train_dir(model, split)
     parameters = _json_object(hparams, "--hparams")
     config = TrainConfig.from_dict(
-        {**settings, "model": model, "hparams": parameters,
-         **({} if epochs is None else {"epochs": epochs})}
-    )  # fmt: skip
+        {**settings, "resume": resume, "model": model, "hparams": parameters}
+    )
     with distributed.session(config.device) as ranks:
         hardware = _hardware_line(config, ranks)  # an unusable device or precision: refused now
         runs.check_checkpoint_dir(out, overwrite, resume)
@@ -309,9 +309,7 @@ def _print_scalars(document: dict, title: str) -> None:
 @app.command("eval")
 @user_errors
 def eval_command(
-    model: Path = typer.Option(
-        None, help="Checkpoint directory with model.onnx (default: the shipped model)."
-    ),
+    model: Path = MODEL,
     data: Path = typer.Option(
         None,
         help="Window data set (default: the one the model was trained on, else "
@@ -332,10 +330,13 @@ def eval_command(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
 ) -> None:
     """Score a model with ONNX Runtime: accuracy, macro-F1, per-class table, confusion matrix."""
+    from wovenskin.outputs import check_writable
     from wovenskin.recognition.shipped import DEFAULT_MODEL_DIR, resolve_model_dir
     from wovenskin.training import runs
     from wovenskin.training.report import evaluate_on_dataset, per_class_table, write_report
 
+    if out is not None:
+        check_writable(out, folder=True)  # refused now, not after the scoring
     if captures is not None:
         _eval_captures(captures, model, out, lopo, arch, epochs, threads, json_out)
         return
@@ -422,23 +423,21 @@ def compare(
     ),
     split: str = typer.Option("grouped", help="grouped, random or both: grouped,random."),
     epochs: int = typer.Option(None, help="Most epochs per model (default 3); may stop sooner."),
-    batch_size: int = typer.Option(64, help="Windows per training step."),
-    lr: float = typer.Option(3e-3, help="Peak learning rate."),
-    seed: int = typer.Option(0, help="Training seed (the same for every model)."),
-    patience: int = typer.Option(5, help="Early-stopping patience in epochs."),
-    split_seed: int = typer.Option(0, help="Seed of the train/validation split."),
+    batch_size: int = BATCH_SIZE,
+    lr: float = LR,
+    seed: int = SEED,
+    patience: int = PATIENCE,
+    split_seed: int = SPLIT_SEED,
     hparams: str = typer.Option(
         "", help='Hyperparameters per model, JSON: \'{"bilstm": {"hidden": 64}}\'.'
     ),
     resume: bool = typer.Option(False, help="Continue interrupted runs in --out."),
     overwrite: bool = typer.Option(False, help="Replace a comparison already in --out."),
     time_budget: float = typer.Option(None, help="Minutes per model and split."),
-    threads: int = typer.Option(
-        1, help="Torch threads for training (one is fastest on a busy 2-core machine)."
-    ),
+    threads: int = THREADS,
     latency_repeats: int = typer.Option(300, help="Timed batch-1 calls per model."),
-    device: str = typer.Option("auto", help=DEVICE_HELP),
-    amp: str = typer.Option("auto", help=AMP_HELP),
+    device: str = DEVICE,
+    amp: str = AMP,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
 ) -> None:
     """Train and score several models on the same data and split: the side-by-side table."""
@@ -463,10 +462,11 @@ def compare(
     for target in targets:  # refused before any data set is built or model trained
         runs.check_comparison_dir(target, overwrite, resume)
     config = TrainConfig.from_dict(
-        {"batch_size": batch_size, "lr": lr, "seed": seed, "patience": patience,
-         "split_seed": split_seed, "resume": resume, "threads": threads,
-         "time_budget_s": None if time_budget is None else 60 * time_budget,
-         "device": device, "amp": amp, **({} if epochs is None else {"epochs": epochs})}
+        {"resume": resume, **_given(
+            batch_size=batch_size, lr=lr, seed=seed, patience=patience, split_seed=split_seed,
+            threads=threads, epochs=epochs, device=device, amp=amp,
+            time_budget_s=None if time_budget is None else 60 * time_budget,
+        )}
     )  # fmt: skip
     datasets = [_open_or_build_dataset(d, ui) for d in (data or [None])]
 
@@ -478,20 +478,11 @@ def compare(
         target = out if len(datasets) == 1 else out / Path(str(ds.path)).name
         try:
             with TrainProgressDisplay(ui) as show:
-                comparisons.append(
-                    compare_models(
-                        ds,
-                        target,
-                        names,
-                        splits,
-                        config,
-                        parameters,
-                        latency_repeats,
-                        show,
-                        reported,
-                        streams=list(streams or []),
-                    )  # fmt: skip
-                )
+                comparison = compare_models(
+                    ds, target, names, splits, config, parameters, latency_repeats, show,
+                    reported, streams=list(streams or []),
+                )  # fmt: skip
+            comparisons.append(comparison)
         except KeyboardInterrupt:
             raise _interrupted(target) from None
     if json_out:

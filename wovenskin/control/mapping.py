@@ -27,19 +27,23 @@ from __future__ import annotations
 import math
 import tomllib
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
+from wovenskin.control.mapping_defaults import (
+    DEFAULT_MAPPING_FILE,
+    HOLD_TO_RUN,
+    MOTION,
+    packaged_mapping_text,
+)
 from wovenskin.control.profile import SpeedProfile, profile_from_table
 from wovenskin.custom_gestures import CustomGesture, parse_custom_gestures
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import INVALID, known_classes
 from wovenskin.robots.base import Pose
 
-DEFAULT_MAPPING_FILE = "default_mapping.toml"
 POSE_NAMES = ("initial", "home")
 AXES = {"x": 0, "y": 1, "z": 2}
 FRAMES = ("tool", "base", "skin")
@@ -53,15 +57,18 @@ SKIN_RIGHT_IN_TOOL = (0.0, 0.0, 1.0)
 
 @dataclass(frozen=True)
 class MotionSettings:
-    """Speeds and smoothing of velocity commands (SI units: m, rad, s)."""
+    """Speeds and smoothing of velocity commands (SI units: m, rad, s).
 
-    frame: Literal["tool", "base", "skin"] = "tool"
-    linear_speed: float = 0.05  # m/s
-    angular_speed: float = math.radians(15.0)  # rad/s
-    linear_accel: float = 0.5  # m/s^2
-    angular_accel: float = math.radians(150.0)  # rad/s^2
-    linear_jerk: float = 10.0  # m/s^3
-    angular_jerk: float = math.radians(3000.0)  # rad/s^3
+    The defaults are the packaged mapping file's ``[motion]`` table, its one home
+    (:mod:`~wovenskin.control.mapping_defaults`; angles there in degrees)."""
+
+    frame: Literal["tool", "base", "skin"] = MOTION["frame"]
+    linear_speed: float = MOTION["linear_speed"]  # m/s
+    angular_speed: float = math.radians(MOTION["angular_speed"])  # rad/s
+    linear_accel: float = MOTION["linear_accel"]  # m/s^2
+    angular_accel: float = math.radians(MOTION["angular_accel"])  # rad/s^2
+    linear_jerk: float = MOTION["linear_jerk"]  # m/s^3
+    angular_jerk: float = math.radians(MOTION["angular_jerk"])  # rad/s^3
     skin_up: tuple[float, float, float] = SKIN_UP_IN_TOOL  # the patch's up, tool frame
     skin_right: tuple[float, float, float] = SKIN_RIGHT_IN_TOOL  # its right, tool frame
     profile: SpeedProfile = field(default_factory=SpeedProfile)  # a gesture's speed in time
@@ -117,7 +124,7 @@ class PoseAction:
     """Go to a stored named pose; hold-to-run stops the move when the command ends."""
 
     name: Literal["initial", "home"]
-    hold_to_run: bool = True
+    hold_to_run: bool = HOLD_TO_RUN
 
     def __str__(self) -> str:
         return f"pose {self.name}"
@@ -154,8 +161,7 @@ class ActionMapping:
     def load(cls, path: str | Path | None = None) -> ActionMapping:
         """Read and validate a mapping file (default: the packaged default mapping)."""
         if path is None:
-            ref = resources.files("wovenskin.control").joinpath(DEFAULT_MAPPING_FILE)
-            return cls.from_text(ref.read_text(encoding="utf-8"), f"<package>/{ref.name}")
+            return cls.from_text(packaged_mapping_text(), f"<package>/{DEFAULT_MAPPING_FILE}")
         path = Path(path)
         try:
             text = path.read_text(encoding="utf-8")
@@ -178,7 +184,7 @@ class ActionMapping:
         known = known_classes(custom)
         settings = _motion_settings(motion, source)
         _check_keys(poses, {"hold_to_run"}, "poses.", source)
-        hold_to_run = poses.get("hold_to_run", True)
+        hold_to_run = poses.get("hold_to_run", HOLD_TO_RUN)
         if not isinstance(hold_to_run, bool):
             raise ConfigError(f"{source}: poses.hold_to_run must be true or false")
         actions: dict[str, Action] = {}
@@ -213,7 +219,7 @@ class ActionMapping:
     def hold_to_run(self) -> bool:
         """Whether pose actions stop when their command ends (``poses.hold_to_run``)."""
         poses = [a for a in self.actions.values() if isinstance(a, PoseAction)]
-        return poses[0].hold_to_run if poses else True
+        return poses[0].hold_to_run if poses else HOLD_TO_RUN
 
     def target_twist(self, gesture: str | None, tcp: Pose) -> np.ndarray:
         """Base-frame twist ``[vx, vy, vz, wx, wy, wz]`` of ``gesture`` at full speed.
@@ -282,10 +288,13 @@ def _motion_settings(motion: dict[str, Any], source: str) -> MotionSettings:
     values: dict[str, Any] = {}
     if "profile" in motion:
         values["profile"] = profile_from_table(motion["profile"], f"{source}: motion.profile")
-    frame = motion.get("frame", "tool")
-    if frame not in FRAMES:
-        raise ConfigError(f"{source}: motion.frame must be 'tool', 'base' or 'skin', got {frame!r}")
-    values["frame"] = frame
+    if "frame" in motion:
+        frame = motion["frame"]
+        if frame not in FRAMES:
+            raise ConfigError(
+                f"{source}: motion.frame must be 'tool', 'base' or 'skin', got {frame!r}"
+            )
+        values["frame"] = frame
     for key in ("skin_up", "skin_right"):
         if key in motion:
             try:

@@ -30,6 +30,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+from wovenskin.control.mapping_defaults import PROFILE
 from wovenskin.errors import ConfigError
 
 PROFILE_KINDS = ("graded", "constant")
@@ -39,15 +40,16 @@ PROFILE_KINDS = ("graded", "constant")
 class SpeedProfile:
     """The target speed of a held gesture, as a fraction of full speed (module docstring).
 
-    Times in s; ``nudge_deg`` in degrees, as in the mapping file.
+    Times in s; ``nudge_deg`` in degrees, as in the mapping file.  The defaults are the
+    packaged mapping file's ``[motion.profile]`` (:mod:`~wovenskin.control.mapping_defaults`).
     """
 
-    kind: Literal["graded", "constant"] = "graded"
-    start_fraction: float = 0.2
-    fine_s: float = 0.2
-    ramp_s: float = 0.5
-    nudge_mm: float = 1.0
-    nudge_deg: float = 0.5
+    kind: Literal["graded", "constant"] = PROFILE["kind"]
+    start_fraction: float = PROFILE["start_fraction"]
+    fine_s: float = PROFILE["fine_s"]
+    ramp_s: float = PROFILE["ramp_s"]
+    nudge_mm: float = PROFILE["nudge_mm"]
+    nudge_deg: float = PROFILE["nudge_deg"]
 
     def __post_init__(self) -> None:
         if self.kind not in PROFILE_KINDS:

@@ -143,9 +143,9 @@ class ControlSession:
 
     shaper = Delegated("drive", "shaper")
     gesture_motion = Delegated("drive", "gesture_motion")
-    speed_scale = Delegated("drive", "speed_scale")  # set_speed_scale: of the mapping's speeds
+    speed_scale = Delegated("drive", "speed_scale", settable=True)  # of the mapping's speeds
     poses = Delegated("pose_mover", "poses")
-    recorder = Delegated("record", "writer")  # the recording's writer while one runs
+    recorder = Delegated("record", "writer", settable=True)  # the writer while one runs
     recording = Delegated("record", "active")
     recording_context = Delegated("record", "context", settable=True)  # open_session's
     command_log = Delegated("inputs", "command_log")

@@ -336,23 +336,26 @@ def _ms(latency: float | None) -> str:
 
 
 def scores_table(rows: Sequence[tuple[str, EventScores]], total: EventScores | None = None):
-    """A Rich table: one row per ``(name, scores)`` and a pooled ``total`` row."""
+    """A Rich table: one row per ``(name, scores)`` and a pooled ``total`` row.
+
+    It fits an 80-column console: the figures never wrap, a long stream name folds onto
+    more lines of its own column."""
+    from rich import box
     from rich.table import Table
 
     table = Table(
-        "stream",
-        "events",
-        "hits",
-        "prec",
-        "recall",
-        "F1",
-        "FA/min",
-        "dups",
-        "latency ms",
-        "motion ms",
+        box=box.SIMPLE_HEAD,
+        show_edge=False,
+        pad_edge=False,
+        collapse_padding=True,
         title="event scores (FA: false activations; latency: median from first contact; "
         "motion: median from the start of the motion)",
     )
+    table.add_column("stream", overflow="fold", min_width=8)
+    for header in ("events", "hits", "prec", "recall", "F1", "FA/min", "dups"):
+        table.add_column(header, justify="right", no_wrap=True)
+    for header in ("latency ms", "motion ms"):  # the header wraps after its word
+        table.add_column(header, justify="right")
     shown = list(rows) + ([("total", total)] if total is not None else [])
     for name, s in shown:
         table.add_row(

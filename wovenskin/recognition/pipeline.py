@@ -84,9 +84,11 @@ def load_recognizer(model: str | os.PathLike | None = None, threads: int = 1) ->
 
 
 def arbiter_settings_for_model(recognizer: Any, **overrides: Any) -> ArbiterSettings:
-    """The execution rules for a recogniser: its checkpoint's recommended ``arbiter``
-    settings (measured for that model, e.g. ``min_probability``), then ``overrides`` that are
-    not ``None``, then the defaults.  A recommendation the arbiter does not know is ignored."""
+    """The execution rules for a recogniser, each setting resolved the one way: an override
+    that is not ``None`` (an explicit option), else the checkpoint's recommended ``arbiter``
+    settings (``meta.json``, measured for that model, e.g. ``min_probability``), else the
+    :class:`ArbiterSettings` default.  A recommendation the arbiter does not know is
+    ignored."""
     meta = getattr(recognizer, "meta", None)
     stored = dict(getattr(meta, "arbiter", None) or {})
     known = set(ArbiterSettings.__dataclass_fields__)
@@ -96,11 +98,15 @@ def arbiter_settings_for_model(recognizer: Any, **overrides: Any) -> ArbiterSett
 
 
 def pipeline_settings_for_model(
-    recognizer: Any, every: int = 1, **arbiter_overrides: Any
+    recognizer: Any, every: int | None = None, **arbiter_overrides: Any
 ) -> PipelineSettings:
-    """Pipeline settings running the model on every ``every``-th window under the execution
-    rules of :func:`arbiter_settings_for_model` (its recommendation, then the overrides)."""
+    """The pipeline settings every command and the dashboard run a model with: the model on
+    every ``every``-th window (``None``: the :class:`PipelineSettings` default) under the
+    execution rules of :func:`arbiter_settings_for_model` (explicit overrides, else the
+    model's recommendation, else the defaults)."""
     arbiter = arbiter_settings_for_model(recognizer, **arbiter_overrides)
+    if every is None:
+        return PipelineSettings(arbiter=arbiter)
     return PipelineSettings(every=every, arbiter=arbiter)
 
 

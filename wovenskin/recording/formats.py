@@ -16,18 +16,24 @@ Conventions beyond docs/formats.md (documented in ``docs/recording-format.md``):
 - ``metadata`` round-trips: its array values are stored as extra ``.npz`` keys and the rest
   as one JSON string under :data:`METADATA_JSON_KEY`, which other tools ignore;
 - keys a reader does not know are kept in ``metadata`` (e.g. ``substrate``, ``cover``).
+- a stream's ``metadata["info"]`` (the skin of an exported recording, which replay and
+  conversion use) is checked as a recording's header is: a crafted one is refused on read.
 """
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from wovenskin.io import atomic_write_with, dumps
 from wovenskin.outputs import check_new_output
+from wovenskin.recording.records import MAX_CHANNELS_PER_SIDE
 from wovenskin.recording.untrusted import fail, load_npz, loads_json
+from wovenskin.skin.frames import SkinInfo
 
 
 @dataclass
@@ -166,6 +172,12 @@ def _stream_from_arrays(where: str, arrays: dict[str, np.ndarray]) -> LabelledSt
     else:
         labels, starts, ends = np.zeros(0, dtype=str), np.zeros(0), np.zeros(0)
     known = (*STREAM_KEYS, *EVENT_KEYS)
+    metadata = _metadata_from_arrays(where, arrays, known)
+    if "info" in metadata:  # an exported recording's skin: what replay and convert use
+        try:
+            skin_info_from_document(metadata["info"])
+        except ValueError as exc:
+            fail(where, f"the stream's metadata 'info' is unusable: {exc}")
     return LabelledStream(
         frames=frames,
         t=t,
@@ -173,8 +185,40 @@ def _stream_from_arrays(where: str, arrays: dict[str, np.ndarray]) -> LabelledSt
         event_start_s=starts,
         event_end_s=ends,
         event_labels=labels,
-        metadata=_metadata_from_arrays(where, arrays, known),
+        metadata=metadata,
     )
+
+
+def skin_info_from_document(value: Any) -> SkinInfo:
+    """A :class:`SkinInfo` from a stored ``info`` object, every field's type checked.
+
+    ``ValueError`` (one line) for anything a crafted file could put there: not an object,
+    a grid outside 1..65535 channels a side, a rate that is not a finite positive number,
+    text fields that are not text.  Unknown fields are ignored (a newer writer's)."""
+    if not isinstance(value, dict):
+        raise ValueError("'info' is not an object")
+    defaults = SkinInfo()
+    fields: dict[str, Any] = {}
+    for name in SkinInfo.__dataclass_fields__:
+        if name not in value:
+            continue
+        given, default = value[name], getattr(defaults, name)
+        if isinstance(default, str):
+            if not isinstance(given, str):
+                raise ValueError(f"info.{name} must be text, got {type(given).__name__}")
+        elif isinstance(default, int):
+            if type(given) is not int:
+                raise ValueError(f"info.{name} must be an integer, got {str(given)[:30]}")
+        elif type(given) not in (int, float) or not math.isfinite(given):
+            raise ValueError(f"info.{name} must be a finite number, got {str(given)[:30]}")
+        fields[name] = float(given) if isinstance(default, float) else given
+    info = SkinInfo(**fields)
+    sides_ok = all(1 <= n <= MAX_CHANNELS_PER_SIDE for n in (info.rows, info.cols))
+    if not (sides_ok and info.sample_rate_hz > 0):
+        raise ValueError(
+            f"an impossible skin: {info.rows}x{info.cols} channels at {info.sample_rate_hz} Hz"
+        )
+    return info
 
 
 def _captures_from_arrays(where: str, arrays: dict[str, np.ndarray]) -> LabelledCaptures:

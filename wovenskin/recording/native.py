@@ -28,13 +28,12 @@ import numpy as np
 
 from wovenskin.errors import DataError
 from wovenskin.recording.documents import decode_document
-from wovenskin.recording.formats import LabelledStream
+from wovenskin.recording.formats import LabelledStream, skin_info_from_document
 from wovenskin.recording.records import (
     FORMAT_VERSION,
     LABEL_KIND_TRIAL,
     MAGIC,
     MAGIC_PREFIX,
-    MAX_CHANNELS_PER_SIDE,
     MAX_FRAMES_PER_RECORD,
     RecordType,
     extends_past_end,
@@ -227,38 +226,6 @@ def read_recording(path: str | os.PathLike) -> Recording:
     )
     _read_body(data, first[2], recording)
     return recording
-
-
-def skin_info_from_document(value: Any) -> SkinInfo:
-    """A :class:`SkinInfo` from a stored ``info`` object, every field's type checked.
-
-    ``ValueError`` (one line) for anything a crafted file could put there: not an object,
-    a grid outside 1..65535 channels a side, a rate that is not a finite positive number,
-    text fields that are not text.  Unknown fields are ignored (a newer writer's)."""
-    if not isinstance(value, dict):
-        raise ValueError("'info' is not an object")
-    defaults = SkinInfo()
-    fields: dict[str, Any] = {}
-    for name in SkinInfo.__dataclass_fields__:
-        if name not in value:
-            continue
-        given, default = value[name], getattr(defaults, name)
-        if isinstance(default, str):
-            if not isinstance(given, str):
-                raise ValueError(f"info.{name} must be text, got {type(given).__name__}")
-        elif isinstance(default, int):
-            if type(given) is not int:
-                raise ValueError(f"info.{name} must be an integer, got {str(given)[:30]}")
-        elif type(given) not in (int, float) or not math.isfinite(given):
-            raise ValueError(f"info.{name} must be a finite number, got {str(given)[:30]}")
-        fields[name] = float(given) if isinstance(default, float) else given
-    info = SkinInfo(**fields)
-    sides_ok = all(1 <= n <= MAX_CHANNELS_PER_SIDE for n in (info.rows, info.cols))
-    if not (sides_ok and info.sample_rate_hz > 0):
-        raise ValueError(
-            f"an impossible skin: {info.rows}x{info.cols} channels at {info.sample_rate_hz} Hz"
-        )
-    return info
 
 
 def _optional_object(document: dict, key: str) -> dict:

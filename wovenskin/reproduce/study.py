@@ -29,6 +29,7 @@ from wovenskin.study.reader import TrialResult, read_trials
 from wovenskin.study.report import SIMULATED_BANNER, report_blocks, write_report
 from wovenskin.study.simulate import TrialRun, simulate_study
 from wovenskin.study.tables import fmt, fmt_mean_std, reduction, summarise
+from wovenskin.wording import quantity
 
 INTERFACES = ("skin", "keyboard", "pendant")
 SIMULATED = Text(SIMULATED_BANNER)  # the study report's banner: this report says it itself
@@ -200,8 +201,10 @@ def study_section(
     blocks: list[Block] = [
         Heading("The user study in simulation (Tables I and II)", 2),
         Text(
-            f"**Simulated operators, not people.** `{command}` ran {len(runs)} trials of "
-            f"{config.participants} simulated operators (novices and experts in turn; the "
+            f"**Simulated operators, not people.** `{command}` ran "
+            f"{quantity(len(runs), 'trial')} of "
+            f"{quantity(config.participants, 'simulated operator')} "
+            "(novices and experts in turn; the "
             f"paper: {PAPER_PARTICIPANTS}) in {wall / 60:.1f} min on this machine. Each "
             "trial is a fresh session on the simulated TM5-900 with its gripper; the "
             "operator's timing (thinking, reaction, key presses, pointing, gestures) is drawn "

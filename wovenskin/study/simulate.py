@@ -15,11 +15,19 @@ person's, so ``wovenskin study report`` reads them as it reads a real study.
 
 A pick-and-place trial moves one object, as the paper's does (the cube, the cylinder and
 the prism in turn; ``objects="all"`` seats all three in every trial).
+
+Ctrl-C stops a study at once, one trial at a time or in workers
+(:mod:`~wovenskin.study.simulate_jobs`): the finished trials are kept, the ones cut short
+removed, and :class:`StudyInterrupted` says how many were kept and where.
+:func:`estimate_wall_s` says beforehand roughly how long a study takes.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,18 +43,33 @@ from wovenskin.operators.operator import SimulatedOperator
 from wovenskin.operators.profiles import OperatorProfile, sample_profile
 from wovenskin.operators.script import ScriptRunner
 from wovenskin.operators.skin_hand import OperatorSkin
-from wovenskin.outputs import OutputExistsError
+from wovenskin.outputs import OutputExistsError, check_writable
 from wovenskin.runtime.session import open_session
 from wovenskin.study.counterbalance import write_plan
 from wovenskin.study.definition import STUDY_FILE, Participant, StudyDefinition, parse_study
-from wovenskin.study.recorder import TrialSummary
+from wovenskin.study.recorder import (
+    SUMMARY_FILE,
+    TRIALS_DIR,
+    TRIALS_FILE,
+    TrialSummary,
+    trial_folder_name,
+)
 from wovenskin.study.session import StudyTrials
+from wovenskin.study.simulate_jobs import StopFlag, ctrl_c_stops, run_jobs
 from wovenskin.study.synthetic import study_text
 from wovenskin.tasks import make_task
 from wovenskin.tasks.shapes import SHAPES
 
 INTERFACES = ("skin", "keyboard", "pendant")
 OPERATORS_FILE = "operators.json"
+TRIALS_PER_CONDITION = 2
+"""The default trials per task and interface: 72 trials for six operators (the paper ran
+10, 360 trials: about 3.5 hours two at a time on a 2-core machine)."""
+WALL_S_PER_TRIAL = {"skin": 86.0, "keyboard": 60.0, "pendant": 55.0}
+SIM_S_PER_WALL_S = {"skin": 1.23, "keyboard": 1.27, "pendant": 1.44}
+"""Wall seconds a trial took on average under the default 300 s limit, and simulated
+seconds run per wall second, two trials at a time on a shared 2-core machine
+(docs/benchmarks.md, "The committed report"): the basis of :func:`estimate_wall_s`."""
 
 
 @dataclass(frozen=True)
@@ -58,6 +81,28 @@ class TrialRun:
     misread: int  # gestures the recogniser read as something else or nothing
     wrong_way: int  # moves started the wrong way
     gave_up: str  # why the operator gave up ("" if it did not)
+
+
+class TrialStopped(Exception):
+    """A trial was stopped (``stopped()`` turned true) before it ended; nothing was kept."""
+
+
+class StudyInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a simulated study: ``kept`` of ``total`` trials are in ``folder``."""
+
+    def __init__(self, folder: Path, kept: int, total: int) -> None:
+        self.folder, self.kept, self.total = folder, kept, total
+        super().__init__(self.message())
+
+    def message(self) -> str:
+        """One line: what was kept, and where."""
+        if not self.kept:
+            return f"no trial of {self.total} finished; {self.folder} holds the study's plan only"
+        verb = "was" if self.kept == 1 else "were"
+        return (
+            f"{self.kept} of {self.total} trials {verb} written to {self.folder / TRIALS_DIR} "
+            f"(listed in {self.folder / TRIALS_FILE}); the unfinished ones were discarded"
+        )
 
 
 def trial_objects(trial: int, objects: str) -> tuple[str, ...] | None:
@@ -82,8 +127,12 @@ def run_trial(
     model: str | Path | None = None,
     overwrite: bool = False,
     log: Callable[[str], None] | None = None,
+    stopped: Callable[[], bool] | None = None,
 ) -> TrialRun:
-    """Run trial ``trial`` of one condition in a fresh session; returns its summary."""
+    """Run trial ``trial`` of one condition in a fresh session; returns its summary.
+
+    When ``stopped()`` turns true the session ends at its next step and, unless the trial
+    had just ended, its unfinished folder is removed and :class:`TrialStopped` raised."""
     if interface not in INTERFACES:
         raise ConfigError(f"simulated operators use {', '.join(INTERFACES)}, not {interface!r}")
     started = time.perf_counter()
@@ -126,16 +175,41 @@ def run_trial(
             block.end("give_up")
 
     hooks.append(on_tick)
+    going_on = None if stopped is None else (lambda: not stopped())
     try:
-        session.run(seconds=time_limit_s + 120.0)
+        session.run(seconds=time_limit_s + 120.0, should_continue=going_on)
     finally:
         block.close()
         session.close()
+    if not block.summaries and stopped is not None and stopped():
+        _discard_unfinished(Path(folder), participant.id, task_name, interface, trial)
+        raise TrialStopped(f"trial {trial} of {participant.id} {task_name}/{interface}")
     if not block.summaries:
         raise ConfigError(f"trial {trial} of {participant.id} {task_name}/{interface} did not end")
     misread = len(getattr(hand, "misread", []))
     wall_s = time.perf_counter() - started
     return TrialRun(block.summaries[0], wall_s, misread, hand.wrong, gave_up[0])
+
+
+def estimate_wall_s(
+    participants: int,
+    trials: int,
+    tasks: int,
+    interfaces: tuple[str, ...],
+    jobs: int,
+    time_limit_s: float = 300.0,
+) -> float:
+    """Roughly how long a simulated study takes, in wall seconds: each trial its
+    interface's measured mean (:data:`WALL_S_PER_TRIAL`), or less when ``time_limit_s``
+    ends it sooner (:data:`SIM_S_PER_WALL_S`), the trials spread over ``jobs`` processes,
+    at most as many as there are cores."""
+    per_condition = participants * trials * tasks
+    total = 0.0
+    for name in interfaces:  # an interface not measured: the slowest measured
+        speed = SIM_S_PER_WALL_S.get(name, min(SIM_S_PER_WALL_S.values()))
+        mean = WALL_S_PER_TRIAL.get(name, max(WALL_S_PER_TRIAL.values()))
+        total += per_condition * min(mean, time_limit_s / speed)
+    return total / max(1, min(int(jobs), os.cpu_count() or 1))
 
 
 def simulated_participants(n: int, seed: int) -> list[tuple[Participant, OperatorProfile]]:
@@ -170,19 +244,32 @@ class _Job:
     overwrite: bool
 
 
-def _run_job(job: _Job) -> TrialRun:
-    return run_trial(
-        job.folder, job.participant, job.profile, job.task, job.interface, job.trial,
-        time_limit_s=job.time_limit_s, objects=job.objects, model=job.model,
-        overwrite=job.overwrite,
-    )  # fmt: skip
+def _run_job(job: _Job, stopped: Callable[[], bool] | None = None) -> TrialRun | None:
+    try:
+        return run_trial(
+            job.folder, job.participant, job.profile, job.task, job.interface, job.trial,
+            time_limit_s=job.time_limit_s, objects=job.objects, model=job.model,
+            overwrite=job.overwrite, stopped=stopped,
+        )  # fmt: skip
+    except TrialStopped:
+        return None
+
+
+def _discard_unfinished(folder: Path, participant: str, task: str, interface: str, n: int) -> None:
+    """Remove a trial's folder that holds no summary (a trial cut short)."""
+    trial_dir = folder / TRIALS_DIR / participant / trial_folder_name(task, interface, n)
+    if trial_dir.is_dir() and not (trial_dir / SUMMARY_FILE).exists():
+        shutil.rmtree(trial_dir, ignore_errors=True)
+        for empty in (trial_dir.parent, trial_dir.parent.parent):  # participant, trials/
+            with contextlib.suppress(OSError):  # not empty: kept
+                empty.rmdir()
 
 
 def simulate_study(
     directory: str | Path,
     participants: int = 6,
     seed: int = 0,
-    trials: int = 10,
+    trials: int = TRIALS_PER_CONDITION,
     *,
     tasks: tuple[str, ...] = ("pick_place", "pour"),
     interfaces: tuple[str, ...] = INTERFACES,
@@ -194,13 +281,16 @@ def simulate_study(
     progress: Callable[[TrialRun], None] | None = None,
 ) -> tuple[StudyDefinition, list[TrialRun]]:
     """Run a whole study of simulated operators into the new folder ``directory``
-    (module docstring); ``jobs`` trials run at once in worker processes."""
+    (module docstring); ``jobs`` trials run at once in worker processes.
+
+    Ctrl-C stops it within a step of every running trial: the trials cut short are
+    removed, no further trial starts, and :class:`StudyInterrupted` says what was kept."""
     if participants < 1 or trials < 1:
         raise ConfigError("a simulated study needs at least one participant and one trial")
     for interface in interfaces:
         if interface not in INTERFACES:
             raise ConfigError(f"simulated operators use {', '.join(INTERFACES)}, not {interface!r}")
-    folder = Path(directory)
+    folder = check_writable(directory, folder=True)  # refused now, not after the trials
     if folder.exists() and any(folder.iterdir()) and not overwrite:
         raise OutputExistsError(folder, "files")
     people = simulated_participants(participants, seed)
@@ -214,6 +304,27 @@ def simulate_study(
         simulated=True,
         participants=tuple(p for p, _ in people),
     )
+    flag = StopFlag()
+    with ctrl_c_stops(flag):  # Ctrl-C from here on stops the study cleanly
+        work = _write_study(folder, study, people, seed, objects, model, overwrite)
+        runs = run_jobs(work, _run_job, jobs, flag, progress)
+    if flag():
+        for job in work:
+            _discard_unfinished(folder, job.participant.id, job.task, job.interface, job.trial)
+        raise StudyInterrupted(folder, len(runs), len(work))
+    return study, runs
+
+
+def _write_study(
+    folder: Path,
+    study: StudyDefinition,
+    people: list[tuple[Participant, OperatorProfile]],
+    seed: int,
+    objects: str,
+    model: str | Path | None,
+    overwrite: bool,
+) -> list[_Job]:
+    """Write the study's files (definition, banner, operators, plan); its trials, in order."""
     folder.mkdir(parents=True, exist_ok=True)
     text = study_text(study, SIMULATED_HEADER)
     parse_study(text)
@@ -234,7 +345,7 @@ def simulate_study(
     _, steps = write_plan(folder, study)
     profiles = {p.id: profile for p, profile in people}
     by_id = {p.id: p for p, _ in people}
-    work = [
+    return [
         _Job(
             str(folder),
             by_id[step.participant],
@@ -242,7 +353,7 @@ def simulate_study(
             step.task,
             step.interface,
             n,
-            time_limit_s,
+            study.time_limit_s,
             objects,
             None if model is None else str(model),
             overwrite,
@@ -250,21 +361,3 @@ def simulate_study(
         for step in steps
         for n in range(1, step.trials + 1)
     ]
-    runs: list[TrialRun] = []
-    if jobs <= 1:
-        for job in work:
-            runs.append(_run_job(job))
-            if progress is not None:
-                progress(runs[-1])
-        return study, runs
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=int(jobs), mp_context=context) as pool:
-        futures = [pool.submit(_run_job, job) for job in work]
-        for future in as_completed(futures):
-            runs.append(future.result())
-            if progress is not None:
-                progress(runs[-1])
-    return study, runs

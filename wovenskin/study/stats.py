@@ -21,6 +21,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import stats
 
+from wovenskin.wording import quantity
+
 MIN_PAIRS = 6  # with 5 non-zero pairs the smallest two-sided exact p is 2 / 2**5 = 0.0625
 MIN_FRIEDMAN = 3  # participants with every interface
 
@@ -107,7 +109,8 @@ def friedman(columns: Sequence[Sequence[float]]) -> FriedmanResult:
     if k < 3:
         return FriedmanResult(n, k, note=f"k = {k} interfaces: Friedman needs >= 3")
     if n < MIN_FRIEDMAN:
-        note = f"n = {n} participants with every interface: too few (needs >= {MIN_FRIEDMAN})"
+        people = quantity(n, "participant")
+        note = f"n = {people} with every interface: too few (needs >= {MIN_FRIEDMAN})"
         return FriedmanResult(n, k, note=note)
     data = np.asarray(columns, dtype=float)
     if np.all(data == data[0]):

@@ -16,7 +16,7 @@ import numpy as np
 
 from wovenskin.errors import ConfigError
 from wovenskin.io import atomic_write_text
-from wovenskin.outputs import OutputExistsError
+from wovenskin.outputs import OutputExistsError, check_writable
 from wovenskin.study.counterbalance import write_plan
 from wovenskin.study.definition import (
     STUDY_FILE,
@@ -136,7 +136,7 @@ def synthetic_study(
     the new folder ``directory``: study.toml, plan.csv, every trial, questionnaires."""
     if participants < 1 or trials < 1:
         raise ConfigError("a synthetic study needs at least one participant and one trial")
-    folder = Path(directory)
+    folder = check_writable(directory, folder=True)
     if folder.exists() and any(folder.iterdir()) and not overwrite:
         raise OutputExistsError(folder, "files")
     people = tuple(

@@ -31,9 +31,8 @@ from wovenskin.io import dumps
 from wovenskin.recognition.event_scoring import aggregate, score_stream
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
 from wovenskin.recognition.pipeline import (
-    PipelineSettings,
-    arbiter_settings_for_model,
     load_stream,
+    pipeline_settings_for_model,
     run_pipeline,
 )
 from wovenskin.settings import to_dict
@@ -117,7 +116,7 @@ def score_on_streams(checkpoint_dir: str | Path, streams: Sequence[Any]) -> Stre
     """Run the live pipeline of the checkpoint's ONNX model on ``streams`` and score events."""
 
     recognizer = OnnxRecognizer(checkpoint_dir, threads=1)
-    settings = PipelineSettings(arbiter=arbiter_settings_for_model(recognizer))
+    settings = pipeline_settings_for_model(recognizer)
     scores = []
     for stream in streams:
         labelled = load_stream(stream)

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from wovenskin.errors import ConfigError
-from wovenskin.outputs import OutputExistsError
+from wovenskin.outputs import OutputExistsError, check_writable
 from wovenskin.recognition.checkpoint_meta import read_meta
 from wovenskin.training.datasets import (
     ProgressCallback,
@@ -76,7 +76,9 @@ def eval_dataset_dir(model_dir: str | Path) -> Path:
 
 
 def check_checkpoint_dir(out: Path, overwrite: bool, resume: bool) -> None:
-    """Refuse to train over a model already in ``out`` unless resuming it or ``overwrite``."""
+    """Refuse to train over a model already in ``out`` unless resuming it or ``overwrite``,
+    and into a folder that could not be written (:func:`~wovenskin.outputs.check_writable`)."""
+    check_writable(out, folder=True)
     if resume or overwrite or not out.is_dir():
         return
     if any((out / name).exists() for name in CHECKPOINT_FILES):
@@ -85,7 +87,9 @@ def check_checkpoint_dir(out: Path, overwrite: bool, resume: bool) -> None:
 
 def check_comparison_dir(out: Path, overwrite: bool, resume: bool) -> None:
     """Refuse to compare into ``out`` when it holds a comparison or a trained model (in
-    ``out/<split>/<model>/``) unless resuming it or ``overwrite``."""
+    ``out/<split>/<model>/``) unless resuming it or ``overwrite``, and a folder that could
+    not be written."""
+    check_writable(out, folder=True)
     if resume or overwrite or not out.is_dir():
         return
     found = (out / COMPARE_FILE).exists() or any(

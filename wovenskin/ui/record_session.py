@@ -48,6 +48,7 @@ from wovenskin.signal.config import ConditioningConfig
 from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.frames import SkinInfo
 from wovenskin.ui.terminal import heatmap, live_screen
+from wovenskin.wording import quantity
 
 INVALID_PROMPT = "touch WITHOUT a gesture: tap, palm, grasp the link, brush past, 3-4 fingers"
 
@@ -94,7 +95,8 @@ class SessionSummary:
     def __str__(self) -> str:
         missed = sum(t.contact_start_s is None for t in self.trials)
         text = (
-            f"wrote {self.path}: {self.frames} frames, {len(self.trials)} labelled trials"
+            f"wrote {self.path}: {quantity(self.frames, 'frame')}, "
+            f"{quantity(len(self.trials), 'labelled trial')}"
             f" ({missed} without contact)"
         )
         return text + (f"; stopped early: {self.aborted}" if self.aborted else "")

@@ -16,7 +16,7 @@ import numpy as np
 
 from wovenskin import __version__
 from wovenskin.io import dumps
-from wovenskin.outputs import OutputExistsError
+from wovenskin.outputs import OutputExistsError, check_writable
 from wovenskin.training.datasets.store import (
     FORMAT,
     FORMAT_VERSION,
@@ -164,7 +164,9 @@ def write_json(path: Path, document) -> None:
 
 def check_target(out_dir: Path, overwrite: bool) -> None:
     """Refuse to build over something that is not an empty directory or a data set, and
-    over a data set unless ``overwrite`` (:class:`~wovenskin.outputs.OutputExistsError`)."""
+    over a data set unless ``overwrite`` (:class:`~wovenskin.outputs.OutputExistsError`),
+    and where it could not be written (:func:`~wovenskin.outputs.check_writable`)."""
+    check_writable(out_dir, folder=True)
     if not out_dir.exists():
         return
     if not out_dir.is_dir():

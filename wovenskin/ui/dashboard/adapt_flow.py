@@ -49,6 +49,7 @@ from wovenskin.gestures import GESTURES, INVALID
 from wovenskin.recording.writer import RecordingWriter
 from wovenskin.ui.dashboard.adapt_job import WORKER_COMMAND, AdaptJob, torch_missing
 from wovenskin.ui.record_session import RecordAborted, RecordDriver, RecordPlan, provenance_for
+from wovenskin.wording import quantity
 
 ADAPT_ROOT = Path("runs") / "adapt"
 HOLD_REASON = "recording for adapt: the arm ignores gestures until the recording ends"
@@ -398,7 +399,7 @@ class AdaptFlow:
             source.autonomous = self._autonomous
         self._autonomous = None
         trials = len(self.driver.trials) if self.driver is not None else 0
-        kept = f"{self.recording} ({trials} trials)"
+        kept = f"{self.recording} ({quantity(trials, 'trial')})"
         if why:
             self.phase = "idle" if why == "cancelled" else "failed"
             self.message = f"recording {why}; kept {kept}; the arm stays stopped until Resume"

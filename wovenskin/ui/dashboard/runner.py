@@ -6,8 +6,8 @@ a thread at the skin's full rate (200 Hz recognition and control) and, at the pa
 (30-60 Hz), stores the newest :func:`~wovenskin.ui.dashboard.snapshot.build_snapshot`
 for the server to send: latest only, so a slow browser never slows control.  Page
 commands (:meth:`submit`) are queued and carried out on the session thread between
-steps; virtual touches (:meth:`touch`) go straight to the simulated skin's physics, never
-to the recogniser or the robot.
+steps (:mod:`.page_commands` says what each does); virtual touches (:meth:`touch`) go
+straight to the simulated skin's physics, never to the recogniser or the robot.
 
 A command that cannot be carried out (a bad value, a robot that refuses, a skin that is
 not simulated) is reported as one line in the page's messages; it never stops the loop.
@@ -25,7 +25,6 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -37,12 +36,13 @@ from wovenskin.signal.live_skin import RateMeter
 from wovenskin.sim.live import SimulatedSkinSource
 from wovenskin.skin.ports import list_ports
 from wovenskin.tasks import TASKS, Task, make_task
-from wovenskin.ui.dashboard.adapt_flow import BLOCKED_WHILE_RECORDING, AdaptFlow
+from wovenskin.ui.dashboard.adapt_flow import AdaptFlow
+from wovenskin.ui.dashboard.page_commands import COMMANDS, carry_out, checked_task
 from wovenskin.ui.dashboard.plan import next_step
-from wovenskin.ui.dashboard.questionnaire import forms, record_answers
+from wovenskin.ui.dashboard.questionnaire import forms
 from wovenskin.ui.dashboard.scene import ArmScene, TaskScene
 from wovenskin.ui.dashboard.snapshot import Timeline, TimelineEntry, build_snapshot
-from wovenskin.ui.dashboard.teleop import INTERFACES, PageInputs, check_interface
+from wovenskin.ui.dashboard.teleop import INTERFACES, PageInputs
 from wovenskin.ui.dashboard.trials import StudyPanel
 
 SessionOpener = Callable[..., ControlSession]
@@ -50,26 +50,6 @@ SessionOpener = Callable[..., ControlSession]
 called as ``opener(skin_spec, robot_spec, task=Task)`` (``open_session(..., task=)``), and
 with ``model=DIR`` added once the page put another model in use (record and adapt)."""
 
-COMMANDS = (
-    "stop",
-    "resume",
-    "calibrate",
-    "home",
-    "initial",
-    "set_initial",
-    "record",
-    "speed",
-    "perform",
-    "autoplay",
-    "switch",
-    "task",
-    "interface",
-    "gripper",
-    "trial",
-    "questionnaire",
-    "plan",
-    "adapt",
-)
 TASK_STATE_PERIOD_S = 0.2  # the task's measures in the page: 5 per second (pour: 1 ms each)
 KEEP = object()  # _switch: keep the model in use
 DEFAULT_SIM_LOOKAHEAD = "0.03"  # s of frames the simulated skin renders ahead (touch latency)
@@ -120,7 +100,7 @@ class DashboardRunner:
         self.record_dir = Path(record_dir)
         self.session: ControlSession | None = None
         self.scene: ArmScene | None = None
-        self.task_name = _checked_task(task)
+        self.task_name = checked_task(task)
         self.task: Task | None = None  # the running session's scene
         self.task_scene: TaskScene | None = None
         self.inputs = PageInputs(interface)
@@ -376,87 +356,11 @@ class DashboardRunner:
             except queue.Empty:
                 return
             try:
-                self._carry_out(command)
+                carry_out(self, command)
             except Exception as exc:  # one line in the page; the loop goes on
                 line = " ".join(f"{command.get('cmd')}: {exc}".split())
                 if self.session is not None:
                     self.session.state.messages.append(f"error: {line}")
-
-    def _carry_out(self, command: dict) -> None:
-        session = self.session
-        assert session is not None
-        name = command["cmd"]
-        if self.adapt.recording_now and name in BLOCKED_WHILE_RECORDING:
-            raise ConfigError("recording for adapt: the arm stays held until it ends (or Cancel)")
-        if name == "stop":
-            session.emergency_stop("stop button")
-        elif name == "resume":
-            session.resume()
-        elif name == "calibrate":
-            session.live_skin.recalibrate()
-            session.state.messages.append("recalibrating: keep hands off the skin")
-        elif name in ("home", "initial"):
-            session.go_to_pose(name)
-        elif name == "set_initial":
-            session.store_pose("initial")
-        elif name == "record":
-            if command.get("on", not session.recording):
-                if not session.recording:
-                    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
-                    self.record_dir.mkdir(parents=True, exist_ok=True)
-                    session.start_recording(self.record_dir / f"dashboard-{stamp}.wsrec")
-            else:
-                session.stop_recording()
-        elif name == "speed":
-            session.set_speed_scale(float(command.get("value", 1.0)))
-        elif name == "perform":
-            source = self._sim_source()
-            if source is None:
-                raise ConfigError("only the simulated skin can perform gestures")
-            source.perform(str(command.get("gesture", "")))
-            session.state.messages.append(f"the simulated person performs {command['gesture']}")
-        elif name == "autoplay":
-            source = self._sim_source()
-            if source is None:
-                raise ConfigError("only the simulated skin has a simulated person")
-            source.autonomous = bool(command.get("on", True))
-        elif name == "note":  # from note(), never from a page
-            session.state.messages.append(command["text"])
-        elif name == "switch":
-            self._switch(
-                str(command.get("skin") or self.skin_spec),
-                str(command.get("robot") or self.robot_spec),
-                self.task_name,
-            )
-        elif name == "task":
-            task = command.get("task")
-            self._switch(self.skin_spec, self.robot_spec, _checked_task(task))
-        elif name == "interface":
-            if self.study.running:
-                raise ConfigError("a trial is running: end it before changing the interface")
-            self.inputs.choose(check_interface(command.get("interface")), session)
-            if (scale := self.inputs.speed()) is not None:
-                session.set_speed_scale(scale)
-            session.state.messages.append(f"interface: {self.inputs.interface}")
-        elif name == "gripper":
-            self.inputs.gripper(session)
-        elif name == "trial":
-            self._trial(session, str(command.get("op")), command.get("participant"))
-        elif name == "plan":  # the page's participant changed: where they stand
-            self.plan = next_step(self.study.study_dir, command.get("participant"))
-        elif name == "questionnaire":
-            session.state.messages.append(record_answers(self.study.study_dir, command))
-        elif name == "adapt":
-            self.adapt.command(self, session, command)
-
-    def _trial(self, session: ControlSession, op: str, participant: object) -> None:
-        t = float(session.now)
-        if op == "start":
-            line = self.study.start(session, self.task, self.inputs.interface, participant, t)
-        else:
-            line = self.study.end(t, op)
-        session.state.messages.append(line)
-        self._replan(participant)
 
     def _replan(self, participant: object = None) -> None:
         """The plan's next step for ``participant`` (default: the one shown)."""
@@ -515,15 +419,6 @@ class DashboardRunner:
     def _autoplay(self) -> bool | None:
         source = self._sim_source()
         return None if source is None else bool(source.autonomous)
-
-
-def _checked_task(task: object) -> str | None:
-    """A task name of the registry, or ``None`` for none (``"none"`` or empty)."""
-    if task in (None, "", "none"):
-        return None
-    if task not in TASKS:
-        raise ConfigError(f"unknown task {str(task)[:40]!r}; known: none, {', '.join(TASKS)}")
-    return str(task)
 
 
 def _with_lookahead(skin: str) -> str:

@@ -88,15 +88,22 @@ function onState(state) {
   updateMessages(state.messages);
 }
 
+// Arrivals per second over the stamps (ms); null until two arrived apart in time (two
+// states handled in the same millisecond would otherwise give Infinity).
+function ratePerSecond(stamps) {
+  if (stamps.length < 2) return null;
+  const span = (stamps[stamps.length - 1] - stamps[0]) / 1000;
+  return span > 0 ? (stamps.length - 1) / span : null;
+}
+
 function pageRate() {
-  const stamps = page.receivedAt;
-  if (stamps.length < 2) return 0;
-  return (stamps.length - 1) / ((stamps[stamps.length - 1] - stamps[0]) / 1000);
+  const rate = ratePerSecond(page.receivedAt);
+  return rate === null ? "-" : rate.toFixed(0);
 }
 
 function updateHeader(state) {
   const r = state.rates || {};
-  $("rates").textContent = `control ${r.control_hz ?? "-"} Hz · page ${pageRate().toFixed(0)} Hz`;
+  $("rates").textContent = `control ${r.control_hz ?? "-"} Hz · page ${pageRate()} Hz`;
   const s = state.safety;
   if (s.user_stopped) setPill($("safety"), "STOPPED (resume to move)", "bad");
   else if (s.stopped) setPill($("safety"), `stopped: ${s.stops.length ? s.stops[s.stops.length - 1].reason : ""}`, "warn");
