@@ -48,7 +48,7 @@ from wovenskin.runtime.session import open_session
 from wovenskin.sim.motion import minimum_jerk
 from wovenskin.sim.performances import perform
 from wovenskin.sim.person import Person
-from wovenskin.ui.dashboard.runner import DashboardRunner
+from wovenskin.ui.dashboard.runner import UI_RATE_HZ, DashboardRunner
 from wovenskin.ui.dashboard.server import BackgroundServer
 
 MOVING_M_S = 1e-3
@@ -363,7 +363,7 @@ def run_dashboard_benchmark(
     model: str | Path | None = None,
     idle_seconds: float = 5.0,
     swipes: int = 6,
-    ui_rate_hz: float = 40.0,
+    ui_rate_hz: float = UI_RATE_HZ,
     gesture_rounds: int = 0,
     seed: int = 0,
     gestures: tuple[str, ...] = GESTURE_NAMES,

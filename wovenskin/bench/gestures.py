@@ -43,6 +43,14 @@ from wovenskin.recording.formats import LabelledStream, write_labelled_stream
 
 Progress = Callable[[str], None]
 
+# The bench's defaults, each written once (``wovenskin bench gestures`` falls through to them).
+DEFAULT_STREAMS = 4  # mixed independent streams for recognition
+DEFAULT_SECONDS = 120.0  # length of each mixed stream
+DEFAULT_BASE_SEED = 22000  # streams seed, seed+1, ...; flicks seed+1000+k; held seed+2000+k
+DEFAULT_FLICKS = 40  # flicks through the simulated arm
+DEFAULT_HELD = 14  # held swipes through the simulated arm
+DEFAULT_HOLD_S = 2.5  # seconds a held swipe's finger stays still after the motion
+
 
 @dataclass
 class GesturesBenchResult(BenchResult):
@@ -55,7 +63,7 @@ class GesturesBenchResult(BenchResult):
     recall_by_kind: dict[str, dict[str, Any]] = field(default_factory=dict)  # flick, push_smooth..
     motion: dict[str, dict[str, Any]] = field(default_factory=dict)  # per kind
     motion_runs: list[dict[str, Any]] = field(default_factory=list)
-    hold_s: float = 2.5
+    hold_s: float = DEFAULT_HOLD_S
     wall_s: float = 0.0
     warnings: list[str] = field(default_factory=list)
 
@@ -214,12 +222,12 @@ def pool_kinds(details: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
 def run_gestures_benchmark(
     recognizer: Any,
     settings: PipelineSettings | None = None,
-    streams: int = 4,
-    seconds: float = 120.0,
-    seed: int = 22000,
-    flicks: int = 40,
-    held: int = 14,
-    hold_s: float = 2.5,
+    streams: int = DEFAULT_STREAMS,
+    seconds: float = DEFAULT_SECONDS,
+    seed: int = DEFAULT_BASE_SEED,
+    flicks: int = DEFAULT_FLICKS,
+    held: int = DEFAULT_HELD,
+    hold_s: float = DEFAULT_HOLD_S,
     progress: Progress | None = None,
     save_dir: str | Path | None = None,
 ) -> GesturesBenchResult:

@@ -160,8 +160,14 @@ MODEL_HELP = "Checkpoint directory with model.onnx (default: the shipped model).
 
 # Options several commands share, defined once (typer reads a default OptionInfo per use).
 MODEL = typer.Option(None, help=MODEL_HELP)
-THREADS = typer.Option(1, help="ONNX Runtime threads for the model.")
+THREADS = typer.Option(None, help="ONNX Runtime threads for the model (default 1).")
 JSON_OUT = typer.Option(False, "--json", help="Print one JSON object.")
+
+
+def given(**options) -> dict:
+    """The options given on the command line (not None); the others are unset and the
+    library's defaults, each written once (docs/settings.md), apply."""
+    return {key: value for key, value in options.items() if value is not None}
 
 
 ROBOT_HELP = (

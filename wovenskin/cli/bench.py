@@ -17,6 +17,7 @@ from wovenskin.cli.app import (
     bench_app,
     console,
     err_console,
+    given,
     pipeline_settings,
     require_torch,
     show_bench,
@@ -93,10 +94,14 @@ def bench_detection(
 @user_errors
 def bench_recognition(
     model: Path = MODEL,
-    streams_per_condition: int = typer.Option(3, help="Unseen simulated streams per condition."),
-    seconds: float = typer.Option(60.0, help="Length of each simulated stream."),
+    streams_per_condition: int = typer.Option(
+        None, help="Unseen simulated streams per condition (default 3)."
+    ),
+    seconds: float = typer.Option(None, help="Length of each simulated stream (default 60)."),
     seed: int = typer.Option(
-        9000, help="Base seed; each stream's seed derives from it, the condition and the stream."
+        None,
+        help="Base seed; each stream's seed derives from it, the condition and the stream "
+        "(default 9000).",
     ),
     conditions: str = typer.Option(
         None, help="Comma-separated subset of the conditions (default: all of them)."
@@ -117,10 +122,18 @@ def bench_recognition(
         TimeRemainingColumn,
     )
 
-    from wovenskin.bench.conditions import condition_names
-    from wovenskin.bench.recognition import run_recognition_benchmark
+    from wovenskin.bench.conditions import DEFAULT_SECONDS, condition_names
+    from wovenskin.bench.recognition import (
+        DEFAULT_BASE_SEED,
+        DEFAULT_STREAMS_PER_CONDITION,
+        run_recognition_benchmark,
+    )
     from wovenskin.recognition.pipeline import load_recognizer
 
+    if streams_per_condition is None:
+        streams_per_condition = DEFAULT_STREAMS_PER_CONDITION
+    seconds = DEFAULT_SECONDS if seconds is None else seconds
+    seed = DEFAULT_BASE_SEED if seed is None else seed
     names = condition_names(conditions)
     recognizer = load_recognizer(model, threads=threads)
     settings = pipeline_settings(recognizer, min_probability=min_probability)
@@ -152,16 +165,24 @@ def bench_recognition(
 @user_errors
 def bench_gestures(
     model: Path = MODEL,
-    streams: int = typer.Option(4, help="Mixed independent streams for recognition (0: none)."),
-    seconds: float = typer.Option(120.0, help="Length of each mixed stream."),
-    seed: int = typer.Option(
-        22000,
-        help="Base seed: mixed streams seed, seed+1, ...; flicks seed+1000+k; held "
-        "swipes seed+2000+k.",
+    streams: int = typer.Option(
+        None, help="Mixed independent streams for recognition (default 4; 0: none)."
     ),
-    flicks: int = typer.Option(40, help="Flicks through the simulated arm (0: none)."),
-    held: int = typer.Option(14, help="Held swipes through the simulated arm (0: none)."),
-    hold: float = typer.Option(2.5, help="Seconds a held swipe's finger stays still."),
+    seconds: float = typer.Option(None, help="Length of each mixed stream (default 120)."),
+    seed: int = typer.Option(
+        None,
+        help="Base seed: mixed streams seed, seed+1, ...; flicks seed+1000+k; held "
+        "swipes seed+2000+k (default 22000).",
+    ),
+    flicks: int = typer.Option(
+        None, help="Flicks through the simulated arm (default 40; 0: none)."
+    ),
+    held: int = typer.Option(
+        None, help="Held swipes through the simulated arm (default 14; 0: none)."
+    ),
+    hold: float = typer.Option(
+        None, help="Seconds a held swipe's finger stays still (default 2.5)."
+    ),
     save_streams: Path = typer.Option(
         None, help="Folder to keep every generated stream in (labelled-stream .npz)."
     ),
@@ -185,9 +206,10 @@ def bench_gestures(
     settings = pipeline_settings(recognizer, min_probability=min_probability)
     with err_console.status("bench gestures...") as status:
         result = run_gestures_benchmark(
-            recognizer, settings, streams, seconds, seed, flicks, held, hold,
-            progress=lambda what: status.update(f"bench gestures: {what}"),
-            save_dir=save_streams,
+            recognizer, settings, progress=lambda what: status.update(f"bench gestures: {what}"),
+            save_dir=save_streams, **given(  # unset: bench/gestures.py's defaults
+                streams=streams, seconds=seconds, seed=seed, flicks=flicks, held=held, hold_s=hold
+            ),
         )  # fmt: skip
     for message in result.warnings:
         warn(message)
@@ -346,7 +368,9 @@ def bench_dashboard(
     model: Path = MODEL,
     idle_seconds: float = typer.Option(5.0, help="Seconds of page states counted while idle."),
     swipes: int = typer.Option(6, help="Swipes sent over the socket (alternately up and down)."),
-    ui_rate: float = typer.Option(40.0, help="Page updates per second asked of the server."),
+    ui_rate: float = typer.Option(
+        None, help="Page updates per second asked of the server (default 40)."
+    ),
     rounds: int = typer.Option(
         2, help="Rounds of the 14 gestures drawn as on a touch screen (0: none)."
     ),
@@ -363,7 +387,9 @@ def bench_dashboard(
     samples, success per gesture), all over its WebSocket."""
 
     from wovenskin.bench.dashboard import run_dashboard_benchmark
+    from wovenskin.ui.dashboard.runner import UI_RATE_HZ
 
+    ui_rate = UI_RATE_HZ if ui_rate is None else ui_rate
     if swipes < 1 or idle_seconds <= 0 or rounds < 0 or mouse_rounds < 0:
         raise ConfigError(
             "--swipes must be >= 1, --idle-seconds positive, --rounds and --mouse-rounds >= 0"

@@ -61,7 +61,7 @@ def run(
     open_browser: bool = typer.Option(
         True, "--open/--no-open", help="Open the dashboard in the default web browser."
     ),
-    ui_rate: float = typer.Option(40.0, help="Dashboard updates per second (30-60)."),
+    ui_rate: float = typer.Option(None, help="Dashboard updates per second, 30-60 (default 40)."),
     trace: str = typer.Option(
         None, help="Write a JSON line per control tick to this .jsonl file ('-': stdout)."
     ),
@@ -227,7 +227,7 @@ def _check_outputs(trace: str | None, record: Path | None, overwrite: bool) -> N
 
 def _run_dashboard(
     skin: str, robot: str, model: Path | None, *, host: str, port: int, token: str | None,
-    open_browser: bool, ui_rate: float, trace: str | None, record: Path | None,
+    open_browser: bool, ui_rate: float | None, trace: str | None, record: Path | None,
     seconds: float | None, mapping: Path | None, poses: Path | None, overwrite: bool,
     task: str | None = None, interface: str = "skin", study: Path | None = None,
     topics=None,
@@ -238,9 +238,10 @@ def _run_dashboard(
 
     from wovenskin.control.trace import TraceWriter
     from wovenskin.runtime.session import open_session
-    from wovenskin.ui.dashboard.runner import DashboardRunner
+    from wovenskin.ui.dashboard.runner import UI_RATE_HZ, DashboardRunner
     from wovenskin.ui.dashboard.server import needs_token, new_token, other_device_urls, serve
 
+    ui_rate = UI_RATE_HZ if ui_rate is None else ui_rate
     if not 30.0 <= ui_rate <= 60.0:
         raise ConfigError(f"--ui-rate must be 30-60 updates per second, got {ui_rate}")
     with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:

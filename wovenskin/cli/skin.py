@@ -21,7 +21,7 @@ from wovenskin.cli.app import (
 def view(
     skin: str = typer.Option("sim", help=SKIN_HELP),
     seconds: float = typer.Option(None, help="Stop after this many seconds (default: Ctrl-C)."),
-    fps: float = typer.Option(25.0, help="Display updates per second."),
+    fps: float = typer.Option(None, help="Display updates per second (default 25)."),
     full_scale: float = typer.Option(
         0.0, help="Relative change shown at full brightness (0: follow the signal)."
     ),
@@ -31,7 +31,7 @@ def view(
 ) -> None:
     """Show a skin live in the terminal: heatmap, contacts, frame rate, error counters."""
     from wovenskin.outputs import check_new_output
-    from wovenskin.ui.view import run_view
+    from wovenskin.ui.view import FPS, run_view
 
     if snapshot is not None:
         check_new_output(snapshot, overwrite)  # refused now, not after the session
@@ -39,7 +39,7 @@ def view(
     result = run_view(
         skin,
         seconds=seconds,
-        fps=fps,
+        fps=FPS if fps is None else fps,
         full_scale=full_scale or None,
         config=_config_for(smoothing_ms),
         console=console,

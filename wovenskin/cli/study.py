@@ -107,7 +107,9 @@ def study_report(
 @user_errors
 def study_simulate(
     directory: Path = typer.Argument(..., help="A new folder for the simulated study."),
-    participants: int = typer.Option(6, min=1, help="Simulated operators (novice, expert, ...)."),
+    participants: int = typer.Option(
+        None, min=1, help="Simulated operators: novice, expert, ... (default 6)."
+    ),
     trials: int = typer.Option(
         None, min=1, help="Trials per task and interface (default 2; the paper ran 10)."
     ),
@@ -119,7 +121,9 @@ def study_simulate(
     objects: str = typer.Option(
         "one", help="pick_place: 'one' object a trial (the paper's) or 'all'."
     ),
-    time_limit: float = typer.Option(300.0, help="Seconds a trial may run from its first command."),
+    time_limit: float = typer.Option(
+        None, help="Seconds a trial may run from its first command (default 300)."
+    ),
     model: Path = MODEL,
     jobs: int = typer.Option(1, min=1, help="Trials run at once (worker processes)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Write into a non-empty folder."),
@@ -133,7 +137,9 @@ def study_simulate(
     from rich.progress import Progress
 
     from wovenskin.cli.app import err_console
+    from wovenskin.study.definition import TIME_LIMIT_S
     from wovenskin.study.simulate import (
+        PARTICIPANTS,
         TRIALS_PER_CONDITION,
         StudyInterrupted,
         estimate_wall_s,
@@ -141,7 +147,9 @@ def study_simulate(
     )
     from wovenskin.wording import duration
 
+    participants = PARTICIPANTS if participants is None else participants
     trials = TRIALS_PER_CONDITION if trials is None else trials
+    time_limit = TIME_LIMIT_S if time_limit is None else time_limit
     total = participants * trials * len(task) * len(interface)
     guess = estimate_wall_s(participants, trials, len(task), tuple(interface), jobs, time_limit)
     console.print(
@@ -197,14 +205,16 @@ def study_simulate(
 @user_errors
 def study_synthetic(
     directory: Path = typer.Argument(..., help="A new folder for the synthetic study."),
-    participants: int = typer.Option(6, min=1, help="Synthetic participants."),
+    participants: int = typer.Option(None, min=1, help="Synthetic participants (default 6)."),
     seed: int = typer.Option(0, help="Random seed (the same seed writes the same study)."),
-    trials: int = typer.Option(2, min=1, help="Trials per task and interface."),
+    trials: int = typer.Option(None, min=1, help="Trials per task and interface (default 2)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Write into a non-empty folder."),
 ) -> None:
     """Write a SYNTHETIC study (made-up numbers, labelled so in every file) to try the report."""
-    from wovenskin.study.synthetic import synthetic_study
+    from wovenskin.study.synthetic import PARTICIPANTS, TRIALS_PER_CONDITION, synthetic_study
 
+    participants = PARTICIPANTS if participants is None else participants
+    trials = TRIALS_PER_CONDITION if trials is None else trials
     study = synthetic_study(directory, participants, seed, trials, overwrite)
     console.print(
         f"wrote a SYNTHETIC study to {directory} "

@@ -21,6 +21,7 @@ from rich.progress import Progress
 from rich.table import Table
 
 from wovenskin.cli.app import MODEL, app, console, err_console, require_torch, user_errors, warn
+from wovenskin.cli.app import given as _given
 from wovenskin.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -35,7 +36,7 @@ AMP_HELP = (
 SPLIT_HELP = "grouped (recordings, people and skins never seen in training) or random (85/15)."
 
 # TrainConfig's settings as options: unset (None) each falls through to TrainConfig's
-# default (training/config.py, the one home; tests/test_cli_defaults.py checks the help).
+# default (training/config.py, the one home; tests/cli/test_cli_defaults.py checks the help).
 BATCH_SIZE = typer.Option(None, help="Windows per training step (default 64).")
 LR = typer.Option(None, help="Peak learning rate: AdamW, warm-up, cosine decay (default 0.003).")
 PATIENCE = typer.Option(None, help="Epochs without a better validation score to stop (default 5).")
@@ -44,11 +45,6 @@ SEED = typer.Option(None, help="Seed of initialisation, batch order, augmentatio
 THREADS = typer.Option(None, help="Torch threads (default 1: fastest on a busy 2-core machine).")
 DEVICE = typer.Option(None, help=DEVICE_HELP + " Default: auto.")
 AMP = typer.Option(None, help=AMP_HELP + " Default: auto.")
-
-
-def _given(**options) -> dict:
-    """The options given on the command line (not None); the others take the defaults."""
-    return {key: value for key, value in options.items() if value is not None}
 
 
 def _json_object(text: str, option: str) -> dict:
@@ -102,18 +98,18 @@ def dataset(
         "simulating: --streams A.npz B.npz ...",
     ),
     more_streams: list[Path] = typer.Argument(None, help="More streams (after --streams)."),
-    recordings: int = typer.Option(140, help="Simulated recordings, each a new person and skin."),
-    windows: int = typer.Option(1000, help="Gesture windows per recording."),
-    invalid_windows: int = typer.Option(400, help="Windows of the invalid class per recording."),
-    seconds: float = typer.Option(120.0, help="Length of each simulated recording."),
+    recordings: int = typer.Option(None, help="Simulated recordings, new people (default 140)."),
+    windows: int = typer.Option(None, help="Gesture windows per recording (default 1000)."),
+    invalid_windows: int = typer.Option(None, help="Invalid windows per recording (default 400)."),
+    seconds: float = typer.Option(None, help="Seconds per simulated recording (default 120)."),
     recipe: str = typer.Option(
         None,
         help="stream: windows at every position, labelled by what they show; "
         "overlay: the paper's augmentation (gesture slices on background noise). Default: stream.",
     ),
     seed: int = typer.Option(0, help="Random seed: the same seed gives the same files."),
-    workers: int = typer.Option(2, help="Worker processes."),
-    dtype: str = typer.Option("float16", help="Storage of the windows: float16 or float32."),
+    workers: int = typer.Option(None, help="Worker processes (default 2)."),
+    dtype: str = typer.Option(None, help="Windows stored as float16 or float32 (default float16)."),
     rows: int = typer.Option(None, help="Simulated skin rows (default 10; streams bring theirs)."),
     cols: int = typer.Option(None, help="Simulated skin columns (default 10)."),
     overwrite: bool = typer.Option(False, help="Replace an existing data set."),
@@ -132,17 +128,21 @@ def dataset(
     grid = (DEFAULT_ROWS if rows is None else rows, DEFAULT_COLS if cols is None else cols)
     layout = SkinLayout(*grid).check_supported(where="--rows/--cols")
     bar, update = dataset_progress(console, "windowing streams" if files else "simulating")
+    given = _given(  # unset: the builders' defaults (training/datasets/writer.py, sim.py)
+        windows_per_recording=windows, invalid_windows_per_recording=invalid_windows,
+        workers=workers, dtype=dtype,
+    )  # fmt: skip
+    sim = _given(n_recordings=recordings, seconds_per_recording=seconds)
     with bar:
         if files:
             ds = build_dataset_from_streams(
-                out, files, windows, invalid_windows, seed=seed, workers=workers,
-                progress=update, dtype=dtype, overwrite=overwrite, settings=settings,
+                out, files, seed=seed, progress=update, overwrite=overwrite, settings=settings,
+                **given,
             )  # fmt: skip
         else:
             ds = generate_sim_dataset(
-                out, recordings, windows, invalid_windows, seconds, seed=seed, workers=workers,
-                progress=update, dtype=dtype, overwrite=overwrite, settings=settings,
-                layout=layout,
+                out, seed=seed, progress=update, overwrite=overwrite, settings=settings,
+                layout=layout, **given, **sim,
             )  # fmt: skip
     summary = DatasetSummary.of(ds)
     console.print(summary.table(ds.class_names))
@@ -326,7 +326,7 @@ def eval_command(
     ),
     arch: str = typer.Option(None, help="With --lopo: the model to train in every fold."),
     epochs: int = typer.Option(None, help="With --lopo: most epochs per fold."),
-    threads: int = typer.Option(1, help="ONNX Runtime threads (--lopo: torch threads)."),
+    threads: int = typer.Option(None, help="ONNX Runtime threads (default 1; --lopo: torch's)."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
 ) -> None:
     """Score a model with ONNX Runtime: accuracy, macro-F1, per-class table, confusion matrix."""
@@ -347,8 +347,8 @@ def eval_command(
     with Progress(console=err_console, transient=True, disable=not err_console.is_terminal) as bar:
         task = bar.add_task("classifying windows", total=None)
         report = evaluate_on_dataset(
-            model_dir, data, split, split_seed, threads,
-            lambda done, total: bar.update(task, completed=done, total=total),
+            model_dir, data, split, split_seed, **_given(threads=threads),
+            progress=lambda done, total: bar.update(task, completed=done, total=total),
         )  # fmt: skip
     if out is None:
         shipped = model_dir.resolve() == DEFAULT_MODEL_DIR.resolve()
@@ -372,7 +372,7 @@ def eval_command(
 
 def _eval_captures(
     path: Path, model: Path | None, out: Path | None, lopo: bool, arch: str | None,
-    epochs: int | None, threads: int, json_out: bool,
+    epochs: int | None, threads: int | None, json_out: bool,
 ) -> None:  # fmt: skip
     from wovenskin.recognition.shipped import resolve_model_dir
     from wovenskin.training import capture_eval, runs
@@ -385,7 +385,7 @@ def _eval_captures(
 
         if model is not None:
             raise ConfigError("--lopo trains its own models: name the architecture with --arch")
-        config = replace(CAPTURE_DEFAULTS.with_model(arch), threads=threads)
+        config = replace(CAPTURE_DEFAULTS.with_model(arch), **_given(threads=threads))
         if epochs is not None:
             config = replace(config, epochs=epochs)
         with TrainProgressDisplay(err_console) as show:
@@ -435,7 +435,7 @@ def compare(
     overwrite: bool = typer.Option(False, help="Replace a comparison already in --out."),
     time_budget: float = typer.Option(None, help="Minutes per model and split."),
     threads: int = THREADS,
-    latency_repeats: int = typer.Option(300, help="Timed batch-1 calls per model."),
+    latency_repeats: int = typer.Option(None, help="Timed batch-1 calls per model (default 300)."),
     device: str = DEVICE,
     amp: str = AMP,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
@@ -473,14 +473,14 @@ def compare(
     def reported(model: str, split_name: str, report) -> None:
         ui.print(f"{model} / {split_name}: {report.summary()}", highlight=False, soft_wrap=True)
 
-    comparisons = []
+    comparisons, repeats = [], _given(latency_repeats=latency_repeats)  # unset: LATENCY_REPEATS
     for ds in datasets:
         target = out if len(datasets) == 1 else out / Path(str(ds.path)).name
         try:
             with TrainProgressDisplay(ui) as show:
                 comparison = compare_models(
-                    ds, target, names, splits, config, parameters, latency_repeats, show,
-                    reported, streams=list(streams or []),
+                    ds, target, names, splits, config, parameters, progress=show,
+                    on_report=reported, streams=list(streams or []), **repeats,
                 )  # fmt: skip
             comparisons.append(comparison)
         except KeyboardInterrupt:

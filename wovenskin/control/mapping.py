@@ -49,7 +49,7 @@ AXES = {"x": 0, "y": 1, "z": 2}
 FRAMES = ("tool", "base", "skin")
 # The skin patch on the simulated TM5-900's end link (robots/sim/tm5_900.xml: the
 # "skin_patch" site has the tool's orientation; the skin's up is the site's x, its right
-# the site's z), in the tool frame.  tests/test_control_mapping_skin.py checks them
+# the site's z), in the tool frame.  tests/control/test_control_mapping_skin.py checks them
 # against the MuJoCo model.
 SKIN_UP_IN_TOOL = (1.0, 0.0, 0.0)
 SKIN_RIGHT_IN_TOOL = (0.0, 0.0, 1.0)

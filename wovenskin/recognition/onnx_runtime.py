@@ -37,6 +37,9 @@ VERIFY_ATOL = 1e-4
 """Largest probability difference between torch and ONNX Runtime that export accepts."""
 MAX_CHUNK = 1024
 """Windows per ONNX Runtime call inside :meth:`OnnxRecognizer.predict_proba` (bounds memory)."""
+ONNX_THREADS = 1
+"""ONNX Runtime threads of a recogniser unless asked otherwise (the commands' ``--threads``):
+one, fastest for batch-1 live inference on a busy machine."""
 
 
 def softmax(logits: np.ndarray) -> np.ndarray:
@@ -129,7 +132,7 @@ def _verify(model: nn.Module, graph: bytes, meta: CheckpointMeta) -> None:
 class OnnxRecognizer:
     """A checkpoint's ONNX graph in ONNX Runtime: windows in, class probabilities out."""
 
-    def __init__(self, checkpoint_dir: str | Path, threads: int = 1) -> None:
+    def __init__(self, checkpoint_dir: str | Path, threads: int = ONNX_THREADS) -> None:
         if threads < 1:
             raise ValueError(f"threads must be at least 1, got {threads}")
         self.checkpoint_dir = Path(checkpoint_dir)

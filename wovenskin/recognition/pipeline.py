@@ -47,7 +47,7 @@ from wovenskin.recognition.arbiter import (
     PerformingSettings,
 )
 from wovenskin.recognition.checkpoint_meta import ModelInputError
-from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+from wovenskin.recognition.onnx_runtime import ONNX_THREADS, OnnxRecognizer
 from wovenskin.recognition.shipped import resolve_model_dir
 from wovenskin.recognition.streaming import Recognizer, StreamingRecognizer, model_window
 from wovenskin.recording.files import read_stream
@@ -78,8 +78,12 @@ class PipelineSettings:
             raise ConfigError(f"every must be an integer >= 1, got {self.every!r}")
 
 
-def load_recognizer(model: str | os.PathLike | None = None, threads: int = 1) -> OnnxRecognizer:
-    """The ONNX recogniser of checkpoint directory ``model`` (None: the shipped default)."""
+def load_recognizer(
+    model: str | os.PathLike | None = None, threads: int | None = None
+) -> OnnxRecognizer:
+    """The ONNX recogniser of checkpoint directory ``model`` (None: the shipped default)
+    on ``threads`` ONNX Runtime threads (None: :data:`ONNX_THREADS`, an unset option)."""
+    threads = ONNX_THREADS if threads is None else threads
     return OnnxRecognizer(resolve_model_dir(model), threads=threads)
 
 

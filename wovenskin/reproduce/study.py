@@ -24,6 +24,7 @@ import numpy as np
 
 from wovenskin.io import atomic_write_text
 from wovenskin.reproduce.paper import PAPER_PARTICIPANTS, PAPER_TABLES, paper_reduction
+from wovenskin.study.definition import TIME_LIMIT_S
 from wovenskin.study.document import Block, Bullets, Heading, Image, Table, Text
 from wovenskin.study.reader import TrialResult, read_trials
 from wovenskin.study.report import SIMULATED_BANNER, report_blocks, write_report
@@ -49,7 +50,7 @@ class StudyConfig:
     tasks: tuple[str, ...] = ("pick_place", "pour")
     interfaces: tuple[str, ...] = INTERFACES
     jobs: int = 2
-    time_limit_s: float = 300.0
+    time_limit_s: float = TIME_LIMIT_S
     seed: int = 0
 
 

@@ -16,6 +16,10 @@ from wovenskin.outputs import check_new_output
 from wovenskin.settings import from_dict
 
 STUDY_FILE = "study.toml"
+TIME_LIMIT_S = 300.0
+"""A trial's time limit, seconds from its first command (the default of
+:attr:`StudyDefinition.time_limit_s`, of ``study.toml``'s template and of the simulated
+study)."""
 
 Task = Literal["pick_place", "pour"]
 Interface = Literal["skin", "skin_registered", "keyboard", "pendant"]
@@ -60,7 +64,7 @@ class StudyDefinition:
     tasks: tuple[Task, ...] = TASKS
     interfaces: tuple[Interface, ...] = ("skin", "keyboard", "pendant")
     trials_per_condition: Annotated[int, Ge(1)] = 3
-    time_limit_s: Annotated[float, Gt(0)] = 300.0
+    time_limit_s: Annotated[float, Gt(0)] = TIME_LIMIT_S
     questionnaires: tuple[Questionnaire, ...] = ()
     synthetic: bool = False  # set by `wovenskin study synthetic`: nothing in it was measured
     # set by `wovenskin study simulate`: simulated operators on the simulated arm and skin
@@ -125,8 +129,8 @@ interfaces = ["skin", "keyboard", "pendant"]
 
 # Trials of each task with each interface, and the time limit of one trial (seconds from
 # the first command; a trial still running then ends as "timeout").
-trials_per_condition = 3
-time_limit_s = 300.0
+trials_per_condition = {trials_per_condition}
+time_limit_s = {time_limit_s!r}
 
 # Questionnaires after each interface: "nasa_tlx" (raw TLX) and/or "sus". [] for none.
 questionnaires = ["nasa_tlx", "sus"]
@@ -147,7 +151,12 @@ def init_study(directory: str | Path, name: str | None = None, overwrite: bool =
     folder = Path(directory)
     folder.mkdir(parents=True, exist_ok=True)
     path = check_new_output(study_file(folder), overwrite, "a study definition")
-    text = TEMPLATE.format(name=_toml_text(name or folder.resolve().name))
+    defaults = StudyDefinition(name="template")  # the template states the defaults
+    text = TEMPLATE.format(
+        name=_toml_text(name or folder.resolve().name),
+        trials_per_condition=defaults.trials_per_condition,
+        time_limit_s=defaults.time_limit_s,
+    )
     parse_study(text)  # the template is always a valid study
     atomic_write_text(path, text)
     return path

@@ -46,7 +46,13 @@ from wovenskin.operators.skin_hand import OperatorSkin
 from wovenskin.outputs import OutputExistsError, check_writable
 from wovenskin.runtime.session import open_session
 from wovenskin.study.counterbalance import write_plan
-from wovenskin.study.definition import STUDY_FILE, Participant, StudyDefinition, parse_study
+from wovenskin.study.definition import (
+    STUDY_FILE,
+    TIME_LIMIT_S,
+    Participant,
+    StudyDefinition,
+    parse_study,
+)
 from wovenskin.study.recorder import (
     SUMMARY_FILE,
     TRIALS_DIR,
@@ -62,12 +68,14 @@ from wovenskin.tasks.shapes import SHAPES
 
 INTERFACES = ("skin", "keyboard", "pendant")
 OPERATORS_FILE = "operators.json"
+PARTICIPANTS = 6
+"""The default simulated operators: the paper's six, three novices and three experts."""
 TRIALS_PER_CONDITION = 2
 """The default trials per task and interface: 72 trials for six operators (the paper ran
 10, 360 trials: about 3.5 hours two at a time on a 2-core machine)."""
 WALL_S_PER_TRIAL = {"skin": 86.0, "keyboard": 60.0, "pendant": 55.0}
 SIM_S_PER_WALL_S = {"skin": 1.23, "keyboard": 1.27, "pendant": 1.44}
-"""Wall seconds a trial took on average under the default 300 s limit, and simulated
+"""Wall seconds a trial took on average under a 300 s limit, and simulated
 seconds run per wall second, two trials at a time on a shared 2-core machine
 (docs/benchmarks.md, "The committed report"): the basis of :func:`estimate_wall_s`."""
 
@@ -197,7 +205,7 @@ def estimate_wall_s(
     tasks: int,
     interfaces: tuple[str, ...],
     jobs: int,
-    time_limit_s: float = 300.0,
+    time_limit_s: float = TIME_LIMIT_S,
 ) -> float:
     """Roughly how long a simulated study takes, in wall seconds: each trial its
     interface's measured mean (:data:`WALL_S_PER_TRIAL`), or less when ``time_limit_s``
@@ -267,13 +275,13 @@ def _discard_unfinished(folder: Path, participant: str, task: str, interface: st
 
 def simulate_study(
     directory: str | Path,
-    participants: int = 6,
+    participants: int = PARTICIPANTS,
     seed: int = 0,
     trials: int = TRIALS_PER_CONDITION,
     *,
     tasks: tuple[str, ...] = ("pick_place", "pour"),
     interfaces: tuple[str, ...] = INTERFACES,
-    time_limit_s: float = 300.0,
+    time_limit_s: float = TIME_LIMIT_S,
     objects: str = "one",
     model: str | Path | None = None,
     jobs: int = 1,

@@ -36,6 +36,8 @@ _KIND = {"skin": "gesture", "skin_registered": "gesture", "keyboard": "key", "pe
 _EXPERT = 0.8  # experts are faster in this made-up world
 _EPOCH = 946684800.0  # 2000-01-01 UTC: synthetic wall times are visibly not real ones
 POSE_RATE_HZ = 5.0
+PARTICIPANTS = 6  # the default synthetic participants, novice and expert in turn
+TRIALS_PER_CONDITION = 2  # the default trials per task and interface
 
 
 SYNTHETIC_HEADER = (
@@ -127,9 +129,9 @@ def _trial(
 
 def synthetic_study(
     directory: str | Path,
-    participants: int = 6,
+    participants: int = PARTICIPANTS,
     seed: int = 0,
-    trials: int = 2,
+    trials: int = TRIALS_PER_CONDITION,
     overwrite: bool = False,
 ) -> StudyDefinition:
     """Write a synthetic study of ``participants`` people (novice and expert in turn) to

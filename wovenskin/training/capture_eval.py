@@ -20,7 +20,7 @@ import numpy as np
 
 from wovenskin.errors import ConfigError, DataError
 from wovenskin.recognition.checkpoint_meta import CheckpointMeta
-from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+from wovenskin.recognition.onnx_runtime import ONNX_THREADS, OnnxRecognizer
 from wovenskin.recording.formats import LabelledCaptures
 from wovenskin.training.capture_prep import (
     capture_digest,
@@ -261,7 +261,7 @@ def score_captures(
 
 
 def evaluate_captures(
-    path: str | Path, model_dir: str | Path, *, threads: int = 1
+    path: str | Path, model_dir: str | Path, *, threads: int = ONNX_THREADS
 ) -> CaptureEvaluation:
     """Score a labelled-captures file with a capture model, on ONNX Runtime (no torch).
 

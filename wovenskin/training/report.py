@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from rich.table import Table
 
-from wovenskin.recognition.onnx_runtime import OnnxRecognizer
+from wovenskin.recognition.onnx_runtime import ONNX_THREADS, OnnxRecognizer
 from wovenskin.training.datasets import (
     DatasetError,
     Split,
@@ -195,7 +195,7 @@ def evaluate_on_dataset(
     data_dir: str | Path | WindowDataset,
     split: str | None = None,
     seed: int | None = None,
-    threads: int = 1,
+    threads: int = ONNX_THREADS,
     progress: EvalProgress | None = None,
 ) -> EvalReport:
     """Score the checkpoint in ``model_dir`` with ONNX Runtime on a window set of a data set.

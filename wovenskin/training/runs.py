@@ -15,6 +15,7 @@ from wovenskin.errors import ConfigError
 from wovenskin.outputs import OutputExistsError, check_writable
 from wovenskin.recognition.checkpoint_meta import read_meta
 from wovenskin.training.datasets import (
+    WORKERS,
     ProgressCallback,
     WindowDataset,
     generate_sim_dataset,
@@ -50,7 +51,7 @@ def default_dataset_exists() -> bool:
 def ensure_dataset(
     data_dir: str | Path | None,
     progress: ProgressCallback | None = None,
-    workers: int = 2,
+    workers: int = WORKERS,
 ) -> tuple[WindowDataset, bool]:
     """The data set at ``data_dir``; with ``None``, the default one, generated if missing.
 

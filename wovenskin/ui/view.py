@@ -1,7 +1,7 @@
 """``wovenskin view``: a live terminal heatmap of any skin source.
 
 Shows the conditioned signal with contact centroids, the frame rate, the display rate and
-the source's error counters, refreshing at ``fps`` (default 25) while conditioning keeps
+the source's error counters, refreshing at ``fps`` (default :data:`FPS`) while conditioning keeps
 the full sample rate.  With the simulated skin it also shows what the simulated person is
 doing, as ground truth.
 """
@@ -22,6 +22,9 @@ from wovenskin.signal.config import ConditioningConfig
 from wovenskin.signal.live_skin import LiveSkin, RateMeter
 from wovenskin.ui.run_view import QUIT_KEYS, terminal_keys
 from wovenskin.ui.terminal import heatmap, live_screen, skin_panel, status_table
+
+FPS = 25.0
+"""Display updates per second of ``wovenskin view`` unless asked otherwise (``--fps``)."""
 
 
 @dataclass
@@ -57,7 +60,7 @@ class AutoScale:
 def run_view(
     skin: str = "sim",
     seconds: float | None = None,
-    fps: float = 25.0,
+    fps: float = FPS,
     full_scale: float | None = None,
     config: ConditioningConfig | None = None,
     console: Console | None = None,

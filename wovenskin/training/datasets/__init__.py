@@ -12,12 +12,14 @@
   (validation recordings, people and skins never appear in training) and
   :func:`leave_one_group_out`.
 
-Everything a caller needs is importable from this package.
+The builders' defaults are written once: counts, workers and dtype in :mod:`~.writer`,
+the simulated recordings and their length in :mod:`~.sim`.  Everything a caller needs is
+importable from this package.
 """
 
 from wovenskin.training.datasets.captures import build_dataset_from_captures
 from wovenskin.training.datasets.normalisation import CaptureNormalisation
-from wovenskin.training.datasets.sim import generate_sim_dataset
+from wovenskin.training.datasets.sim import RECORDINGS, SECONDS_PER_RECORDING, generate_sim_dataset
 from wovenskin.training.datasets.splits import (
     Split,
     grouped_split,
@@ -42,12 +44,24 @@ from wovenskin.training.datasets.streams import (
     sim_skin_name,
     stream_identity,
 )
+from wovenskin.training.datasets.writer import (
+    DTYPE,
+    INVALID_WINDOWS_PER_RECORDING,
+    WINDOWS_PER_RECORDING,
+    WORKERS,
+)
 
 __all__ = [
+    "DTYPE",
     "FORMAT",
     "FORMAT_VERSION",
     "GROUP_KEYS",
+    "INVALID_WINDOWS_PER_RECORDING",
+    "RECORDINGS",
+    "SECONDS_PER_RECORDING",
+    "WINDOWS_PER_RECORDING",
     "WINDOW_DTYPES",
+    "WORKERS",
     "CaptureNormalisation",
     "DatasetError",
     "ProgressCallback",

@@ -12,7 +12,13 @@ from wovenskin.training.capture_prep import capture_window_ends, capture_windows
 from wovenskin.training.datasets.jobs import one_line
 from wovenskin.training.datasets.normalisation import CaptureNormalisation
 from wovenskin.training.datasets.store import DatasetError, WindowDataset
-from wovenskin.training.datasets.writer import DatasetWriter, base_meta, check_dtype, check_target
+from wovenskin.training.datasets.writer import (
+    DTYPE,
+    DatasetWriter,
+    base_meta,
+    check_dtype,
+    check_target,
+)
 from wovenskin.training.window_settings import SOURCE_CODES
 
 
@@ -22,7 +28,7 @@ def build_dataset_from_captures(
     window_frames: int = 30,
     stride: int | None = None,
     normalisation: CaptureNormalisation | None = None,
-    dtype: str = "float16",
+    dtype: str = DTYPE,
     overwrite: bool = False,
 ) -> WindowDataset:
     """Window data set from a labelled-captures ``.npz`` (e.g. HAART).

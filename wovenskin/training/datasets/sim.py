@@ -29,6 +29,10 @@ from wovenskin.training.datasets.streams import (
     window_stream,
 )
 from wovenskin.training.datasets.writer import (
+    DTYPE,
+    INVALID_WINDOWS_PER_RECORDING,
+    WINDOWS_PER_RECORDING,
+    WORKERS,
     DatasetWriter,
     RecordingCollector,
     RecordingWindows,
@@ -37,6 +41,12 @@ from wovenskin.training.datasets.writer import (
     check_target,
 )
 from wovenskin.training.window_settings import WindowSettings
+
+RECORDINGS = 140
+"""Simulated recordings of the default data set, each a new person on a new skin (the
+paper's 140)."""
+SECONDS_PER_RECORDING = 120.0
+"""Length of each simulated recording: about 3 rounds of the 14 gestures."""
 
 
 @dataclass(frozen=True)
@@ -76,18 +86,18 @@ def _simulate_recording(job: _SimJob) -> RecordingWindows:
 
 def generate_sim_dataset(
     out_dir: str | os.PathLike,
-    n_recordings: int = 140,
-    windows_per_recording: int = 1000,
-    invalid_windows_per_recording: int = 400,
-    seconds_per_recording: float = 120.0,
+    n_recordings: int = RECORDINGS,
+    windows_per_recording: int = WINDOWS_PER_RECORDING,
+    invalid_windows_per_recording: int = INVALID_WINDOWS_PER_RECORDING,
+    seconds_per_recording: float = SECONDS_PER_RECORDING,
     seed: int = 0,
-    workers: int = 2,
+    workers: int = WORKERS,
     progress: ProgressCallback | None = None,
     settings: WindowSettings | None = None,
     conditioning: ConditioningConfig | None = None,
     layout: SkinLayout | None = None,
     invalid_fraction: float = 0.25,
-    dtype: str = "float16",
+    dtype: str = DTYPE,
     overwrite: bool = False,
 ) -> WindowDataset:
     """Generate a simulated window data set in ``out_dir`` (see the module doc).

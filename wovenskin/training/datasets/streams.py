@@ -30,6 +30,10 @@ from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.training.datasets.jobs import one_line, run_jobs
 from wovenskin.training.datasets.store import DatasetError, ProgressCallback, WindowDataset
 from wovenskin.training.datasets.writer import (
+    DTYPE,
+    INVALID_WINDOWS_PER_RECORDING,
+    WINDOWS_PER_RECORDING,
+    WORKERS,
     DatasetWriter,
     RecordingCollector,
     RecordingWindows,
@@ -278,16 +282,16 @@ def _recording_name(index: int, path: str) -> str:
 def build_dataset_from_streams(
     out_dir: str | os.PathLike,
     paths: Sequence[str | os.PathLike],
-    windows_per_recording: int = 1000,
-    invalid_windows_per_recording: int = 400,
+    windows_per_recording: int = WINDOWS_PER_RECORDING,
+    invalid_windows_per_recording: int = INVALID_WINDOWS_PER_RECORDING,
     seed: int = 0,
-    workers: int = 2,
+    workers: int = WORKERS,
     progress: ProgressCallback | None = None,
     settings: WindowSettings | None = None,
     conditioning: ConditioningConfig | None = None,
     persons: Sequence[str] | None = None,
     skins: Sequence[str] | None = None,
-    dtype: str = "float16",
+    dtype: str = DTYPE,
     overwrite: bool = False,
 ) -> WindowDataset:
     """Window data set from labelled streams (``.npz``) or native recordings (``.wsrec``).

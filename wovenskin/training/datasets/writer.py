@@ -29,6 +29,18 @@ from wovenskin.training.datasets.store import (
 )
 from wovenskin.training.window_settings import SOURCE_NAMES
 
+# The builders' defaults, each written once: generate_sim_dataset and
+# build_dataset_from_streams (counts, workers, dtype), build_dataset_from_captures (dtype),
+# runs.ensure_dataset (workers) and `wovenskin dataset` (its options fall through to them).
+WINDOWS_PER_RECORDING = 1000
+"""Gesture windows per recording, balanced over the gestures (the paper's 1,000)."""
+INVALID_WINDOWS_PER_RECORDING = 400
+"""Windows of the invalid class per recording."""
+WORKERS = 2
+"""Worker processes, one recording each at a time."""
+DTYPE = "float16"
+"""How the windows are stored (float16 or float32)."""
+
 
 @dataclass
 class RecordingWindows:

@@ -50,6 +50,9 @@ SessionOpener = Callable[..., ControlSession]
 called as ``opener(skin_spec, robot_spec, task=Task)`` (``open_session(..., task=)``), and
 with ``model=DIR`` added once the page put another model in use (record and adapt)."""
 
+UI_RATE_HZ = 40.0
+"""Page states sent per second unless asked otherwise (``run --ui-rate``, ``bench
+dashboard --ui-rate``)."""
 TASK_STATE_PERIOD_S = 0.2  # the task's measures in the page: 5 per second (pour: 1 ms each)
 KEEP = object()  # _switch: keep the model in use
 DEFAULT_SIM_LOOKAHEAD = "0.03"  # s of frames the simulated skin renders ahead (touch latency)
@@ -84,7 +87,7 @@ class DashboardRunner:
         skin: str,
         robot: str,
         *,
-        ui_rate_hz: float = 40.0,
+        ui_rate_hz: float = UI_RATE_HZ,
         record_dir: str | Path = "recordings",
         task: str | None = None,
         interface: str = "skin",
