@@ -13,6 +13,8 @@ from wovenskin.cli import app
 from wovenskin.custom_gestures import CustomGesture
 from wovenskin.recording.formats import write_labelled_stream
 
+pytestmark = pytest.mark.slow  # fine-tunes models: a learning test, left out of `make test-fast`
+
 pytest.importorskip("torch")
 
 DOUBLE_TAP = CustomGesture(

@@ -34,6 +34,8 @@ from wovenskin.skin.layout import SkinLayout
 from wovenskin.training.datasets import open_dataset
 from wovenskin.ui.dashboard.runner import DashboardRunner
 
+pytestmark = pytest.mark.slow  # end to end on two grids: left out of `make test-fast`
+
 runner = CliRunner()
 
 GRIDS = [(8, 8), (16, 12)]

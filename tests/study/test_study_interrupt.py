@@ -73,7 +73,8 @@ def check_what_was_kept(folder: Path, err: str, ended: float) -> int:
     return kept
 
 
-@pytest.mark.parametrize("jobs", [1, pytest.param(2, marks=pytest.mark.slow)])
+@pytest.mark.slow  # a whole simulated study in a subprocess, interrupted
+@pytest.mark.parametrize("jobs", [1, 2])
 def test_ctrl_c_stops_the_study_and_says_what_was_kept(tmp_path, jobs):
     folder = tmp_path / "study"
     code, err, ended = interrupt_study(folder, jobs)
