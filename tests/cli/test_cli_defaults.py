@@ -85,6 +85,8 @@ SETTINGS: dict[tuple[str, str], tuple[type | str, str, float]] = {
     ("study synthetic", "trials"): ("wovenskin.study.synthetic", "TRIALS_PER_CONDITION", 1),
     ("run", "ui_rate"): ("wovenskin.ui.dashboard.runner", "UI_RATE_HZ", 1),
     ("bench dashboard", "ui_rate"): ("wovenskin.ui.dashboard.runner", "UI_RATE_HZ", 1),
+    ("bench dashboard", "idle_seconds"): ("wovenskin.bench.dashboard", "IDLE_SECONDS", 1),
+    ("bench dashboard", "swipes"): ("wovenskin.bench.dashboard", "SWIPES", 1),
     ("view", "fps"): ("wovenskin.ui.view", "FPS", 1),
     **{
         (command, "threads"): _ONNX_THREADS

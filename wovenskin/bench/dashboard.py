@@ -359,10 +359,14 @@ def _first_command(client: _Client, since: float) -> tuple[str | None, float | N
     return None, None
 
 
+IDLE_SECONDS = 5.0  # page states counted while idle
+SWIPES = 6  # swipes sent over the socket, alternately up and down
+
+
 def run_dashboard_benchmark(
     model: str | Path | None = None,
-    idle_seconds: float = 5.0,
-    swipes: int = 6,
+    idle_seconds: float = IDLE_SECONDS,
+    swipes: int = SWIPES,
     ui_rate_hz: float = UI_RATE_HZ,
     gesture_rounds: int = 0,
     seed: int = 0,

@@ -366,8 +366,12 @@ def bench_safety(
 @user_errors
 def bench_dashboard(
     model: Path = MODEL,
-    idle_seconds: float = typer.Option(5.0, help="Seconds of page states counted while idle."),
-    swipes: int = typer.Option(6, help="Swipes sent over the socket (alternately up and down)."),
+    idle_seconds: float = typer.Option(
+        None, help="Seconds of page states counted while idle (default 5)."
+    ),
+    swipes: int = typer.Option(
+        None, help="Swipes sent over the socket, alternately up and down (default 6)."
+    ),
     ui_rate: float = typer.Option(
         None, help="Page updates per second asked of the server (default 40)."
     ),
@@ -386,10 +390,12 @@ def bench_dashboard(
     on a touch screen and the gestures drawn with a mouse (dense and sparse pointer
     samples, success per gesture), all over its WebSocket."""
 
-    from wovenskin.bench.dashboard import run_dashboard_benchmark
+    from wovenskin.bench.dashboard import IDLE_SECONDS, SWIPES, run_dashboard_benchmark
     from wovenskin.ui.dashboard.runner import UI_RATE_HZ
 
     ui_rate = UI_RATE_HZ if ui_rate is None else ui_rate
+    idle_seconds = IDLE_SECONDS if idle_seconds is None else idle_seconds
+    swipes = SWIPES if swipes is None else swipes
     if swipes < 1 or idle_seconds <= 0 or rounds < 0 or mouse_rounds < 0:
         raise ConfigError(
             "--swipes must be >= 1, --idle-seconds positive, --rounds and --mouse-rounds >= 0"
