@@ -114,18 +114,22 @@ def study_simulate(
         None, min=1, help="Trials per task and interface (default 2; the paper ran 10)."
     ),
     seed: int = typer.Option(0, help="Random seed (the same seed runs the same study)."),
-    task: list[str] = typer.Option(["pick_place", "pour"], help="Tasks (repeat the option)."),
+    task: list[str] = typer.Option(
+        None, help="Tasks, the option repeated (default: pick_place and pour)."
+    ),
     interface: list[str] = typer.Option(
-        ["skin", "keyboard", "pendant"], help="Interfaces (repeat the option)."
+        None, help="Interfaces, the option repeated (default: skin, keyboard and pendant)."
     ),
     objects: str = typer.Option(
-        "one", help="pick_place: 'one' object a trial (the paper's) or 'all'."
+        None, help="pick_place: 'one' object a trial (the paper's, the default) or 'all'."
     ),
     time_limit: float = typer.Option(
         None, help="Seconds a trial may run from its first command (default 300)."
     ),
     model: Path = MODEL,
-    jobs: int = typer.Option(1, min=1, help="Trials run at once (worker processes)."),
+    jobs: int = typer.Option(
+        None, min=1, help="Trials run at once, in worker processes (default 1)."
+    ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Write into a non-empty folder."),
 ) -> None:
     """Run a whole study with SIMULATED operators (novices and experts with human timing)
@@ -137,8 +141,11 @@ def study_simulate(
     from rich.progress import Progress
 
     from wovenskin.cli.app import err_console
-    from wovenskin.study.definition import TIME_LIMIT_S
+    from wovenskin.study.definition import TASKS, TIME_LIMIT_S
     from wovenskin.study.simulate import (
+        INTERFACES,
+        JOBS,
+        OBJECTS,
         PARTICIPANTS,
         TRIALS_PER_CONDITION,
         StudyInterrupted,
@@ -150,6 +157,10 @@ def study_simulate(
     participants = PARTICIPANTS if participants is None else participants
     trials = TRIALS_PER_CONDITION if trials is None else trials
     time_limit = TIME_LIMIT_S if time_limit is None else time_limit
+    task = task or list(TASKS)
+    interface = interface or list(INTERFACES)
+    objects = OBJECTS if objects is None else objects
+    jobs = JOBS if jobs is None else jobs
     total = participants * trials * len(task) * len(interface)
     guess = estimate_wall_s(participants, trials, len(task), tuple(interface), jobs, time_limit)
     console.print(

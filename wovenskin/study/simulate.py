@@ -48,6 +48,7 @@ from wovenskin.runtime.session import open_session
 from wovenskin.study.counterbalance import write_plan
 from wovenskin.study.definition import (
     STUDY_FILE,
+    TASKS,
     TIME_LIMIT_S,
     Participant,
     StudyDefinition,
@@ -67,6 +68,8 @@ from wovenskin.tasks import make_task
 from wovenskin.tasks.shapes import SHAPES
 
 INTERFACES = ("skin", "keyboard", "pendant")
+OBJECTS = "one"  # pick_place: one object a trial (the paper's), or "all"
+JOBS = 1  # trials run at once (worker processes)
 OPERATORS_FILE = "operators.json"
 PARTICIPANTS = 6
 """The default simulated operators: the paper's six, three novices and three experts."""
@@ -279,12 +282,12 @@ def simulate_study(
     seed: int = 0,
     trials: int = TRIALS_PER_CONDITION,
     *,
-    tasks: tuple[str, ...] = ("pick_place", "pour"),
+    tasks: tuple[str, ...] = TASKS,
     interfaces: tuple[str, ...] = INTERFACES,
     time_limit_s: float = TIME_LIMIT_S,
-    objects: str = "one",
+    objects: str = OBJECTS,
     model: str | Path | None = None,
-    jobs: int = 1,
+    jobs: int = JOBS,
     overwrite: bool = False,
     progress: Callable[[TrialRun], None] | None = None,
 ) -> tuple[StudyDefinition, list[TrialRun]]:
