@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from wovenskin.cli.app import app, console, require_torch, user_errors
+from wovenskin.cli.app import app, console, err_console, require_torch, user_errors
 
 
 @app.command()
@@ -36,10 +36,16 @@ def reproduce(
 
     chosen = size or ("quick" if quick else "full")
     command = "wovenskin " + " ".join(sys.argv[1:]) if sys.argv[1:] else "wovenskin reproduce"
-    result = run(
-        out, chosen, haart=haart, jobs=jobs, trials=trials, overwrite=overwrite, command=command,
-        log=lambda text: console.print(text, highlight=False, markup=False),
-    )  # fmt: skip
+    from wovenskin.study.simulate import StudyInterrupted
+
+    try:
+        result = run(
+            out, chosen, haart=haart, jobs=jobs, trials=trials, overwrite=overwrite,
+            command=command, log=lambda text: console.print(text, highlight=False, markup=False),
+        )  # fmt: skip
+    except StudyInterrupted as stopped:  # Ctrl-C in the simulated study: say what was kept
+        err_console.print(f"interrupted: {stopped.message()}; no report written", markup=False)
+        raise typer.Exit(130) from None
     console.print(
         f"wrote {result.markdown}, {result.html} and {result.figures} in "
         f"{result.wall_s / 60:.1f} min"
