@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from wovenskin.control.mapping import ActionMapping
 from wovenskin.recognition.arbiter import LIFT_OFF
@@ -173,8 +172,7 @@ def _classify(
     """Count a moving twist as inside a command (aligned or not), in a nudge, or outside."""
     for command in commands:
         if command.start_s - TICK_SLACK_S <= stream_s <= command.end_s + TICK_SLACK_S:
-            pose = chain.forward(q)
-            tcp = Pose(pose[:3, 3], _quaternion(pose[:3, :3]))
+            tcp = Pose.from_transform(chain.forward(q))
             wanted = mapping.target_twist(command.gesture, tcp)
             cosine = float(
                 np.dot(wanted, twist) / (np.linalg.norm(wanted) * np.linalg.norm(twist) or 1.0)
@@ -269,7 +267,3 @@ def silence_report(log: list[dict[str, Any]]) -> SilenceReport:
     final_q = np.array(end["q"] if end is not None else first_zero["q"], dtype=float)
     moved = float(np.max(np.abs(final_q - np.array(first_zero["q"], dtype=float))))
     return SilenceReport(stopped, (first_zero["wall_ns"] - stopped) * 1e-6, moving, moved)
-
-
-def _quaternion(rotation: np.ndarray) -> np.ndarray:
-    return Rotation.from_matrix(rotation).as_quat()[[3, 0, 1, 2]]

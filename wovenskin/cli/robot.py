@@ -343,17 +343,13 @@ def pose_show(
 
 def _builtin_poses(names: list[str]) -> dict:
     """``{name: (q, tcp Pose)}`` of the simulated TM5-900's built-in home/initial poses."""
-    from scipy.spatial.transform import Rotation
-
     from wovenskin.robots.base import Pose
     from wovenskin.robots.sim import tm5_900
 
     out = {}
     for name in names:
         q = tm5_900.HOME_Q if name == "home" else tm5_900.INITIAL_Q
-        transform = tm5_900.forward_kinematics(q)
-        x, y, z, w = Rotation.from_matrix(transform[:3, :3]).as_quat()
-        out[name] = (q, Pose(transform[:3, 3], [w, x, y, z]))
+        out[name] = (q, Pose.from_transform(tm5_900.forward_kinematics(q)))
     return out
 
 

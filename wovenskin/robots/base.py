@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from wovenskin.errors import DeviceError
 
@@ -73,6 +74,13 @@ class Pose:
             raise ValueError("pose quaternion has zero norm")
         object.__setattr__(self, "position", position)
         object.__setattr__(self, "quat", quat / norm)
+
+    @classmethod
+    def from_transform(cls, transform: np.ndarray) -> Pose:
+        """The pose of a 4x4 homogeneous transform (base <- TCP)."""
+        matrix = np.asarray(transform, dtype=float)
+        x, y, z, w = Rotation.from_matrix(matrix[:3, :3]).as_quat()
+        return cls(matrix[:3, 3], np.array([w, x, y, z]))
 
     def rotation(self) -> np.ndarray:
         """The 3x3 rotation matrix of :attr:`quat` (base <- tool)."""

@@ -5,7 +5,7 @@ follows the joint-space path the safety layer checked (a quintic, rest to rest, 
 joint speeds are the asked fraction of the limits) by sending, every cycle, the twist
 ``J(q) (dq_ref + gain (q_ref - q))``: with a square, non-singular Jacobian Servo's inverse
 kinematics turns it back into exactly those joint velocities, and the feedback term pulls
-the arm onto the path where Servo's smoothing or scaling let it lag. A :class:`PoseMove`
+the arm onto the path where Servo's smoothing or scaling let it lag. A :class:`CartesianMove`
 drives the tool centre point along a straight line and a shortest rotation to a pose the
 same way, in Cartesian space. A move that has not arrived ``patience_s`` after its plan
 ended gives up with one line.
@@ -79,7 +79,7 @@ class JointMove:
 
 
 @dataclass
-class PoseMove:
+class CartesianMove:
     """A straight-line move of the tool centre point to ``goal``, streamed as twists."""
 
     start: Pose
@@ -91,7 +91,7 @@ class PoseMove:
     @classmethod
     def plan(
         cls, start: Pose, goal: Pose, speed: float, angular_speed: float, t: float
-    ) -> PoseMove:
+    ) -> CartesianMove:
         """The move whose peak linear (angular) speed is ``speed`` (``angular_speed``)."""
         distance = float(np.linalg.norm(goal.position - start.position))
         turn = _angle(start, goal)

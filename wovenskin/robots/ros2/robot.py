@@ -36,7 +36,6 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from wovenskin.errors import MissingExtraError
 from wovenskin.robots.base import (
@@ -52,7 +51,7 @@ from wovenskin.robots.base import (
 )
 from wovenskin.robots.ros2 import servo_service
 from wovenskin.robots.ros2.joint_states import JointStateReader
-from wovenskin.robots.ros2.moves import JointMove, MoveFailed, PoseMove
+from wovenskin.robots.ros2.moves import CartesianMove, JointMove, MoveFailed
 from wovenskin.robots.ros2.settings import Ros2Settings
 from wovenskin.robots.sim import tm5_900
 from wovenskin.robots.urdf import UrdfChain
@@ -103,7 +102,7 @@ class Ros2Robot(Robot):
         self._sent = np.zeros(6)  # the last twist published, base frame
         self._sent_t = 0.0
         self._commanded_t = 0.0  # when send_twist last ran
-        self._move: JointMove | PoseMove | None = None
+        self._move: JointMove | CartesianMove | None = None
         self._move_error: str | None = None
         self._fault: str | None = None
         self.published = 0  # twists sent, zero twists included
@@ -288,8 +287,7 @@ class Ros2Robot(Robot):
             latest = joints.latest()
             fault, self._move_error = self._fault or self._move_error, None
             moving = self._move is not None or bool(np.any(self._sent))
-        pose = self.chain.forward(latest.q)
-        tcp = Pose(pose[:3, 3], _quaternion(pose[:3, :3]))
+        tcp = Pose.from_transform(self.chain.forward(latest.q))
         return RobotState(
             t=self._clock(),
             q=latest.q,
@@ -328,9 +326,8 @@ class Ros2Robot(Robot):
             joints = self._require()
             if self._fault is not None:
                 raise RobotError(self._fault)
-            current = self.chain.forward(joints.latest().q)
-            start = Pose(current[:3, 3], _quaternion(current[:3, :3]))
-            self._move = PoseMove.plan(start, pose, speed, POSE_ANGULAR_SPEED, self._clock())
+            start = Pose.from_transform(self.chain.forward(joints.latest().q))
+            self._move = CartesianMove.plan(start, pose, speed, POSE_ANGULAR_SPEED, self._clock())
 
     def stop(self) -> None:
         with self._lock:
@@ -338,8 +335,3 @@ class Ros2Robot(Robot):
                 return
             self._move = None
             self._publish(np.zeros(6))
-
-
-def _quaternion(rotation: np.ndarray) -> np.ndarray:
-    """``[w, x, y, z]`` of a rotation matrix."""
-    return Rotation.from_matrix(rotation).as_quat()[[3, 0, 1, 2]]

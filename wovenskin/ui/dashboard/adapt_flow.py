@@ -143,7 +143,7 @@ def gesture_hint(label: str, mapping: Any, custom: dict[str, CustomGesture]) -> 
     if label == INVALID:
         return ""
     fingers = custom[label].fingers if label in custom else _FINGERS.get(label)
-    parts = [f"{fingers} finger{'s' if fingers != 1 else ''}"] if fingers else []
+    parts = [quantity(fingers, "finger")] if fingers else []
     action = mapping.action_for(label) if mapping is not None else None
     if action is not None:
         parts.append(f"its action: {action} (held while recording)")
