@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from wovenskin.errors import DeviceError
 
@@ -78,6 +77,8 @@ class Pose:
     @classmethod
     def from_transform(cls, transform: np.ndarray) -> Pose:
         """The pose of a 4x4 homogeneous transform (base <- TCP)."""
+        from scipy.spatial.transform import Rotation  # not at import: the CLI loads this module
+
         matrix = np.asarray(transform, dtype=float)
         x, y, z, w = Rotation.from_matrix(matrix[:3, :3]).as_quat()
         return cls(matrix[:3, 3], np.array([w, x, y, z]))
