@@ -1,8 +1,8 @@
-"""The skin interface for :mod:`task_operator`: gestures drawn with the mouse on the page's
+"""The skin interface for :mod:`page_drivers`: gestures drawn with the mouse on the page's
 virtual skin, recognised by the shipped recogniser from the simulated skin's frames.
 
 :class:`SkinDriver` turns the operator's base-frame moves into the gesture whose action
-(the default mapping, tool frame) best matches: a one-finger swipe for a translation along
+(the session's mapping, tool frame) best matches: a one-finger swipe for a translation along
 the tool's y or z, ``push`` / ``pinch_in_2f`` along its x, a two-finger swipe for a turn
 about its y or z, a two-finger circle about its x.  ``press`` draws the gesture and keeps
 the fingers resting on the skin (the command runs until lift-off), ``release`` lifts them,
@@ -20,23 +20,11 @@ import time
 
 import numpy as np
 from hardware_mouse import HardwareMouse
-from task_operator import ROTATIONS, TRANSLATIONS, OperatorError, ServerView, choose
+from page_drivers import OperatorError, ServerView, choose
 
-# (action kind, tool axis index, sign) -> gesture, as in control/default_mapping.toml
-GESTURE_FOR = {
-    ("translate", 2, 1): "swipe_up",
-    ("translate", 2, -1): "swipe_down",
-    ("translate", 1, 1): "swipe_right",
-    ("translate", 1, -1): "swipe_left",
-    ("translate", 0, 1): "pinch_in_2f",
-    ("translate", 0, -1): "push",
-    ("rotate", 1, 1): "swipe_up_2f",
-    ("rotate", 1, -1): "swipe_down_2f",
-    ("rotate", 2, 1): "swipe_right_2f",
-    ("rotate", 2, -1): "swipe_left_2f",
-    ("rotate", 0, 1): "circle_cw_2f",
-    ("rotate", 0, -1): "circle_ccw_2f",
-}
+from wovenskin.control.mapping import TwistAction
+from wovenskin.operators.hands import ROTATIONS, tool_command
+
 # swipe directions on the canvas (fractions of its width and height; y grows downward)
 SWIPES = {"up": ((0.5, 0.8), (0.5, 0.25)), "down": ((0.5, 0.2), (0.5, 0.75)),
           "right": ((0.2, 0.5), (0.75, 0.5)), "left": ((0.8, 0.5), (0.25, 0.5))}  # fmt: skip
@@ -53,6 +41,7 @@ class SkinDriver:
     """Gestures on the page's virtual skin (module docstring)."""
 
     interface = "skin"
+    exact_nudges = False
 
     def __init__(self, page, runner, log=print) -> None:
         self.page = page
@@ -65,7 +54,13 @@ class SkinDriver:
         self.box: dict | None = None
         self.timings: list[tuple[str, float, float]] = []  # gesture, s to land, s to command
         self.fingers: int | None = None  # the page's hand, as this driver last chose it
-        settings = runner.session.mapping.settings
+        self.session = runner.session
+        mapping = self.session.mapping
+        self.gestures = {  # the mapping's tool-frame action -> its gesture
+            str(action): name for name, action in mapping.actions.items()
+            if isinstance(action, TwistAction)
+        }  # fmt: skip
+        settings = mapping.settings
         self.speed = {"linear": settings.linear_speed, "angular": settings.angular_speed}
 
     # -- the Driver protocol
@@ -108,13 +103,7 @@ class SkinDriver:
 
     def _gesture(self, axis: str, sign: int) -> str:
         """The gesture whose tool-frame action best matches ``sign`` x base ``axis``."""
-        if axis in TRANSLATIONS:
-            kind, wanted = "translate", np.eye(3)[TRANSLATIONS.index(axis)] * sign
-        else:
-            kind, wanted = "rotate", np.eye(3)[ROTATIONS.index(axis)] * sign
-        along = self.view.tool_axes() @ wanted  # each tool axis against the wanted direction
-        i = int(np.argmax(np.abs(along)))
-        return GESTURE_FOR[(kind, i, 1 if along[i] > 0 else -1)]
+        return self.gestures[tool_command(self.session, axis, sign)]
 
     def _perform(self, gesture: str) -> None:
         """Draw ``gesture`` and rest on the skin once the recogniser gives it; up to three

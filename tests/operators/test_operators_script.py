@@ -1,6 +1,8 @@
 """Plans stepped in session time: sleeps, waits on sights, time-outs, give-ups."""
 
-from wovenskin.operators.script import ScriptRunner, Sleep, Timeout, Until
+import pytest
+
+from wovenskin.operators.script import ScriptRunner, Sleep, Timeout, Until, run_blocking
 
 
 def _run(runner: ScriptRunner, until: float, dt: float = 0.005) -> float:
@@ -75,3 +77,52 @@ def test_starting_a_new_plan_closes_the_old_one():
     runner.tick(0.01)
     runner.start(plan(), 0.02)
     assert closed == [True]
+
+
+class _Clock:
+    """A session clock that moves on 0.1 s every time it is read."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        self.t += 0.1
+        return self.t
+
+
+def test_run_blocking_waits_on_the_session_clock_and_returns_the_result():
+    clock, woke = _Clock(), []
+
+    def plan():
+        yield Sleep(1.0)
+        woke.append(clock.t)
+        yield Until(lambda: clock.t > 2.0, 10.0, "later")
+        return "done"
+
+    assert run_blocking(plan(), clock, poll_s=0.0) == "done"
+    assert woke[0] >= 1.0 and clock.t > 2.0
+
+
+def test_run_blocking_raises_the_plans_error_and_stops_when_told():
+    def failing():
+        yield Sleep(0.2)
+        raise ValueError("cannot go on")
+
+    with pytest.raises(ValueError, match="cannot go on"):
+        run_blocking(failing(), _Clock(), poll_s=0.0)
+
+    closed, looks = [], []
+
+    def endless():
+        try:
+            while True:
+                yield Sleep(0.1)
+        finally:
+            closed.append(True)
+
+    def going_on() -> bool:
+        looks.append(1)
+        return len(looks) < 5
+
+    assert run_blocking(endless(), _Clock(), going_on=going_on, poll_s=0.0) is None
+    assert closed == [True] and len(looks) == 5

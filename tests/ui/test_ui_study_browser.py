@@ -8,8 +8,9 @@ pendant (jog panel buttons held with the mouse, step clicks near the goal) and t
 (the experimenter switches the page to the simulated skin, read by the shipped recogniser;
 the gestures are drawn with the mouse as :mod:`skin_driver` says).  Each trial is started
 from the study panel (participant, task and interface chosen in the page) and ends by
-itself on the task's own success; the robot is operated by
-:class:`task_operator.Operator`, closed loop on the session's state read on the server.
+itself on the task's own success; the robot is operated by the simulated study's own
+planner (:class:`wovenskin.operators.operator.SimulatedOperator`, closed loop on the
+session's scene) through the page, with an experimenter's timing (:mod:`page_drivers`).
 The last test runs the study report on the folder and checks its tables and plots.
 
 The study's mapping doubles the default speeds (100 mm/s, 30 deg/s; accelerations 0.5 m/s^2
@@ -28,12 +29,22 @@ import time
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
 import pytest
+from page_drivers import (
+    EXPERIMENTER,
+    KeyboardDriver,
+    OperatorError,
+    PageHand,
+    PendantDriver,
+    ServerView,
+)
 from skin_driver import SkinDriver
 from stand_ins import ContactMeans
-from task_operator import KeyboardDriver, Operator, OperatorError, PendantDriver, ServerView
 from test_ui_dashboard_browser import SHOTS, _save, browser, open_page  # noqa: F401 - the fixture
 
+from wovenskin.operators.operator import SimulatedOperator
+from wovenskin.operators.script import run_blocking
 from wovenskin.runtime.session import open_session
 from wovenskin.study.definition import add_participant, init_study
 from wovenskin.study.reader import read_trials
@@ -171,7 +182,7 @@ def test_a_study_trial_completes_the_task(page, dashboard, task, interface) -> N
         _use_skin(page, view, SIM_SKIN)
     _choose_task(page, view, task)
     if interface == "keyboard":
-        driver = KeyboardDriver(page, view, runner.session.mapping)
+        driver = KeyboardDriver(page, view, runner.session)
     elif interface == "pendant":
         driver = PendantDriver(page, view)
     else:
@@ -179,10 +190,14 @@ def test_a_study_trial_completes_the_task(page, dashboard, task, interface) -> N
     _arm_to_initial(page, view)
     driver.prepare()
     _start_trial(page, view, task, interface)
-    operator = Operator(runner, driver, log=lines.append)
+    session = runner.session
+    operator = SimulatedOperator(
+        session, runner.task, PageHand(driver, session), EXPERIMENTER,
+        np.random.default_rng(0), log=lines.append,
+    )  # fmt: skip
     started, session_t0 = time.monotonic(), view.state()["t"]
     try:
-        getattr(operator, task)()
+        run_blocking(operator.run(1), lambda: session.now, going_on=lambda: runner.study.running)
         state = view.wait(lambda s: not s["study"]["running"], 60, "the trial to end")
     finally:
         SHOTS.mkdir(parents=True, exist_ok=True)  # what the operator did, kept by CI
@@ -203,7 +218,6 @@ def test_a_study_trial_completes_the_task(page, dashboard, task, interface) -> N
         "session_s": round(state["t"] - session_t0, 1),
         "trial_s": round(summary["duration_s"], 1),
         "commands": summary["commands"],
-        "operator_moves": operator.moves,
     }
     (SHOTS / "study-timings.json").write_text(json.dumps(TIMINGS, indent=2))
     _save(page, f"study-{task}-{interface}.png")

@@ -60,6 +60,14 @@ def tool_command(session: Any, axis: str, sign: int) -> str:
     return f"{kind} {mark}{'xyz'[k]}"
 
 
+def press_time(amount: float, speed: float, accel: float) -> float:
+    """How long a held move goes ``amount``: accelerating half the way and braking the
+    other (``sqrt(amount / accel)``), or ``amount / speed`` past full speed."""
+    if amount < speed * speed / accel:
+        return math.sqrt(amount / accel)
+    return amount / speed
+
+
 def flip(command: str) -> str:
     """The same action the other way."""
     kind, axis = command.split()
@@ -93,12 +101,9 @@ class Hand:
         return command
 
     def held_for(self, axis: str, amount: float) -> float:
-        """How long to hold a move of ``amount``: the ramp up and down, or at full speed."""
+        """How long to hold a move of ``amount`` (at least a tap: :func:`press_time`)."""
         kind = self.kind(axis)
-        v, a = self.speed[kind], self.accel[kind]
-        if amount < v * v / a:
-            return max(TAP_S, math.sqrt(amount / a))
-        return max(TAP_S, amount / v)
+        return max(TAP_S, press_time(amount, self.speed[kind], self.accel[kind]))
 
     def release_now(self) -> None:
         """Let go of anything held (the trial ended)."""

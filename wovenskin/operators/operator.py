@@ -13,6 +13,14 @@ task's physics), the gripper's opening.  It never judges success: the study's tr
 runner does, from the task's state.  A plan that cannot go on raises
 :class:`OperatorGaveUp` (the trial then runs into its time limit, as a person who gives up
 would be stopped).
+
+The same planner drives the browser study (``tests/ui/test_ui_study_browser.py``): there
+its hand acts through the page (keys, jog buttons, gestures drawn with the mouse) and a
+thread steps the plan with :func:`~wovenskin.operators.script.run_blocking` on the
+session's clock instead of the session's tick callback.  So the plan never assumes that an
+act takes effect at once: it waits for the arm to come to rest over several session
+instants, and a stop of the safety layer (which the session clears once nothing is held)
+is waited out.
 """
 
 from __future__ import annotations
@@ -39,6 +47,15 @@ WRONG_WAY = {"linear": 0.004, "angular": math.radians(3.0)}  # seen going the wr
 
 class OperatorGaveUp(Exception):
     """The operator could not go on (three presses held back, a shape that would not seat)."""
+
+
+class HeldBack(OperatorGaveUp):
+    """Three presses in a row along one axis went nowhere (a limit holds the arm back)."""
+
+
+class NoProgress(OperatorGaveUp):
+    """Short moves that move the arm but not what the operator steers by (a held shape
+    that turns in the fingers instead of with them)."""
 
 
 class Missed(Exception):
@@ -121,27 +138,41 @@ class SimulatedOperator:
         yield Sleep(seconds * float(self.rng.lognormal(0.0, 0.25)))
 
     def settle(self, timeout_s: float = 30.0) -> Plan:
-        """Wait until nothing is held and the arm is still, then take it in (a reaction)."""
-        still = [0]
+        """Wait until nothing is held, no stop holds the arm and it is still, seen at three
+        session instants in a row, then take it in (a reaction).  A stop the session
+        clears by itself (any but the stop key's) is waited out; the stop key's ends the
+        plan."""
+        looks = [math.nan, 0]  # the session instant last looked at, quiet looks in a row
 
         def quiet() -> bool:
+            if self.session.user_stopped:
+                return True  # the plan ends below
+            now = float(self.session.now)
+            if now == looks[0]:
+                return looks[1] >= 3
             s = self.session.state
             robot = s.robot
-            ok = s.held is None and s.gesture is None and robot is not None
+            ok = s.held is None and s.gesture is None and not s.stopped and robot is not None
             ok = ok and robot.tcp_speed < 5e-4 and float(np.linalg.norm(robot.tcp_twist[3:])) < 5e-3
-            still[0] = still[0] + 1 if ok else 0
-            return still[0] >= 3
+            looks[0], looks[1] = now, looks[1] + 1 if ok else 0
+            return looks[1] >= 3
 
         yield Until(quiet, timeout_s, "the arm at rest")
+        if self.session.user_stopped:
+            raise OperatorGaveUp("the stop key holds the arm")
         yield Sleep(self.profile.reaction_s)
 
     def align(self, axis: str, error: Callable[[], float], tol: float, presses: bool = True,
-              timeout_s: float = 120.0) -> Plan:  # fmt: skip
-        """Drive ``axis`` until ``|error()| <= tol`` (goal minus now, m or rad)."""
+              timeout_s: float = 120.0, stall_after: int | None = None) -> Plan:  # fmt: skip
+        """Drive ``axis`` until ``|error()| <= tol`` (goal minus now, m or rad).
+        ``presses`` False: short moves only.  ``stall_after``: :class:`NoProgress` after
+        that many short moves in a row that brought the error down by less than a tenth of
+        what they asked."""
         kind = "angular" if axis in ROTATIONS else "linear"
         a = self.accel[kind]
         aim = tol * self.profile.precision
         start = self.session.now
+        stalled = 0
         yield from self.settle()
         while True:
             e = float(error())
@@ -182,6 +213,9 @@ class SimulatedOperator:
                 yield from self.hand.nudge(axis, sign, asked)
                 yield from self.settle()
                 done = sign * (e - float(error()))
+                stalled = stalled + 1 if done < 0.1 * asked else 0
+                if stall_after is not None and stalled >= stall_after:
+                    raise NoProgress(f"{axis}: {stalled} short moves in a row left it at {e:+.4f}")
                 if not exact and done > 0:
                     change = abs(e) / done
                     self.gain[kind] = float(np.clip(gain * np.clip(change, 0.7, 1.4), 0.5, 3.0))
@@ -192,7 +226,8 @@ class SimulatedOperator:
         arm's braking and how late it has learnt its releases act with this interface
         (a lifted gesture ends its command later than a released key); let go a reaction
         time later.  The wrong way: let go and correct; no motion for :data:`STUCK_S`:
-        let go (three in a row: give up).  The person judges by the speed it sees the arm
+        let go (three in a row: :class:`HeldBack`); a stop of the safety layer: let go.
+        The person judges by the speed it sees the arm
         move at (an arm still speeding up, as a held gesture's does, is let go later than
         one at full speed).  Returns whether it let go for the goal."""
         p = self.profile
@@ -216,6 +251,8 @@ class SimulatedOperator:
             )
 
         def look() -> bool:
+            if self.session.state.stopped:
+                return True
             now = self.measure(axis)
             if sign * float(error()) <= seen():
                 return True
@@ -230,14 +267,17 @@ class SimulatedOperator:
         except Timeout:
             return False
         reached = False
-        if -sign * went(self.measure(axis)) > WRONG_WAY[kind]:
+        if self.session.state.stopped:
+            self.log(f"{axis}: the safety layer stopped the arm, let go")
+        elif -sign * went(self.measure(axis)) > WRONG_WAY[kind]:
             self.log(f"{axis}: going the wrong way, let go")  # a reaction time after seeing it
         elif sign * float(error()) > seen():
             self.stuck += 1
             held = ", ".join(self._holding()) or "nothing said"
             self.log(f"{axis}: no motion while pressed ({held})")
             if self.stuck >= 3:
-                raise OperatorGaveUp(f"{axis}: held back three presses in a row ({held})")
+                self.stuck = 0
+                raise HeldBack(f"{axis}: held back three presses in a row ({held})")
             return False
         else:
             self.stuck, reached = 0, True
@@ -249,14 +289,22 @@ class SimulatedOperator:
         return [str(reason) for reason in self.session.holding()]
 
     def align_xy(self, error: Callable[[], np.ndarray], tol: float, passes: int = 10) -> Plan:
-        """Both ``error()[0]`` (x) and ``[1]`` (y) within ``tol``, y first."""
+        """Both ``error()[0]`` (x) and ``[1]`` (y) within ``tol``, y first.  An axis held
+        back (in the tool frame a turned gripper's key carries the TCP along a diagonal, to
+        the edge of the reach or the elbow's fold limit) is left for the other, as a person
+        does: that one brings the TCP back, and the next pass tries it again."""
+        held: HeldBack | None = None
         for _ in range(passes):
             for i, axis in ((1, "y"), (0, "x")):
-                yield from self.align(axis, lambda i=i: error()[i], tol)
+                try:
+                    yield from self.align(axis, lambda i=i: error()[i], tol)
+                except HeldBack as exc:
+                    held = exc
+                    self.log(f"{exc}: the other axis first")
             yield from self.settle()
             if np.all(np.abs(error()[:2]) <= tol):
                 return
-        raise OperatorGaveUp(f"x, y: error {error()[:2]} > {tol}")
+        raise OperatorGaveUp(f"x, y: error {error()[:2]} > {tol}" + (f" ({held})" if held else ""))
 
     def move_tcp(self, axis: str, goal: float, tol: float = 0.002, presses: bool = True) -> Plan:
         i = TRANSLATIONS.index(axis)
@@ -363,7 +411,12 @@ class SimulatedOperator:
         if dropped:
             yield from pick_up_again()
         if shape.symmetry is not None:
-            yield from self.align("rz", lambda: -wrap(obj()[1], shape.symmetry), math.radians(2))
+            try:
+                turn = lambda: -wrap(obj()[1], shape.symmetry)  # noqa: E731
+                yield from self.align("rz", turn, math.radians(2), stall_after=6)
+            except NoProgress as turning:  # it turns in the fingers: grasp it again
+                dropped.append(str(turning))
+                yield from pick_up_again()
         yield from self.align_xy(to_mold, 0.0018)
         if dropped:
             yield from pick_up_again()

@@ -6,10 +6,15 @@ every control tick, with a timeout).  :class:`ScriptRunner` resumes it from the 
 tick callback when the wait is over, so the operator acts on the session's clock however
 fast the simulation runs, and a run is the same for the same seeds.  A timed-out
 ``Until`` raises :class:`Timeout` inside the plan (which may catch it and correct).
+
+:func:`run_blocking` steps a plan from a thread of its own instead, polling the session's
+clock: for a session that runs elsewhere (a dashboard's, driven through its page), where a
+plan's acts block while they happen.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from typing import Any
@@ -87,3 +92,24 @@ class ScriptRunner:
         self._wait, self._since = nxt, t
         if isinstance(nxt, Until) and nxt.predicate():  # already true: go on next tick
             self._wait = Sleep(0.0)
+
+
+def run_blocking(
+    plan: Plan,
+    clock: Callable[[], float],
+    going_on: Callable[[], bool] = lambda: True,
+    poll_s: float = 0.01,
+) -> Any:
+    """Step ``plan`` to its end in this thread, its waits on ``clock`` (the session's
+    ``now``, so a wait lasts session time however the session keeps up with the wall),
+    looking every ``poll_s`` wall seconds; stop it early once ``going_on()`` is false
+    (the trial ended).  Returns the plan's result, or raises the error it ended on."""
+    runner = ScriptRunner()
+    runner.start(plan, clock())
+    while runner.running and going_on():
+        runner.tick(clock())
+        time.sleep(poll_s)
+    runner.stop()
+    if runner.error is not None:
+        raise runner.error
+    return runner.result
