@@ -6,8 +6,8 @@ virtual skin, recognised by the shipped recogniser from the simulated skin's fra
 the tool's y or z, ``push`` / ``pinch_in_2f`` along its x, a two-finger swipe for a turn
 about its y or z, a two-finger circle about its x.  ``press`` draws the gesture and keeps
 the fingers resting on the skin (the command runs until lift-off), ``release`` lifts them,
-``nudge`` lifts as soon as the command starts, at a lower speed (the page's speed slider,
-set for the way asked, as a person slows down for the last millimetres).  Like a person
+``nudge`` keeps it on the skin as long as the mapping's speed profile takes for the way
+asked, as the simulated study's skin hand does.  Like a person
 who is not understood, the driver lifts and draws again when the recogniser gives
 nothing, or gives another command (lifted at once: the operator measures and corrects),
 up to three times.
@@ -18,23 +18,23 @@ from __future__ import annotations
 import math
 import time
 
-import numpy as np
 from hardware_mouse import HardwareMouse
 from page_drivers import OperatorError, ServerView, choose
 
 from wovenskin.control.mapping import TwistAction
-from wovenskin.operators.hands import ROTATIONS, tool_command
+from wovenskin.operators.hands import (
+    LIFT_LAG_S,
+    ROTATIONS,
+    learn_lift_lag,
+    short_hold_s,
+    tool_command,
+)
 
 # swipe directions on the canvas (fractions of its width and height; y grows downward)
 SWIPES = {"up": ((0.5, 0.8), (0.5, 0.25)), "down": ((0.5, 0.2), (0.5, 0.75)),
           "right": ((0.2, 0.5), (0.75, 0.5)), "left": ((0.8, 0.5), (0.25, 0.5))}  # fmt: skip
 SWIPE_S = 0.4  # 140-190 mm/s on average (docs/gestures.md: 70-250 mm/s)
-# how long a nudge's command runs, from the command to the arm at rest after the lift: the
-# lift's way through the page and the skin (0.2-0.5 s measured in the browser) and the
-# shaped stop; an estimate on the long side, so a first nudge near an object falls short
-# (the operator learns from what it measures and asks for more)
-NUDGE_RUN_S = 0.6
-MAX_NUDGE_SPEED = 0.5  # the speed slider's most while nudging: people slow down near things
+LIFT_WAIT_S = 5.0  # session seconds a lifted gesture's command may take to end
 
 
 class SkinDriver:
@@ -61,6 +61,8 @@ class SkinDriver:
             if isinstance(action, TwistAction)
         }  # fmt: skip
         settings = mapping.settings
+        self.profile = settings.profile  # the graded speed of a held gesture
+        self.lift_lag = LIFT_LAG_S  # learnt: how long a command lasts after the lift (s)
         self.speed = {"linear": settings.linear_speed, "angular": settings.angular_speed}
 
     # -- the Driver protocol
@@ -78,18 +80,33 @@ class SkinDriver:
         self._lift()
 
     def nudge(self, axis: str, sign: int, amount: float) -> int:
-        """A gesture lifted as soon as it acts, at the speed (the page's slider: 5 % steps,
-        at most :data:`MAX_NUDGE_SPEED`) at which it would go ``amount`` in
-        :data:`NUDGE_RUN_S`."""
+        """The simulated study's short move on the skin: once the gesture acts, held for as
+        long as the mapping's speed profile takes to cover ``amount``, less how late a lift
+        acts (learnt lift by lift), then lifted (:func:`~wovenskin.operators.hands.short_hold_s`,
+        :func:`~wovenskin.operators.hands.learn_lift_lag`)."""
+        session = self.session
         speed = self.speed["angular" if axis in ROTATIONS else "linear"]
-        wanted = round(amount / (speed * NUDGE_RUN_S) * 20) / 20  # the slider's 5 % steps
-        self._speed(float(np.clip(wanted, 0.05, MAX_NUDGE_SPEED)))
         try:
             self._perform(self._gesture(axis, sign))
+            acting = session.now - (session.state.gesture_since or session.now)
+            self._rest(short_hold_s(self.profile, amount, speed, acting, self.lift_lag))
         finally:
+            lifted_at = session.now
             self._lift()
-            self._speed(1.0)
+        while session.state.gesture is not None and session.now - lifted_at < LIFT_WAIT_S:
+            time.sleep(0.005)
+        if session.state.gesture is None:
+            self.lift_lag = learn_lift_lag(self.lift_lag, session.now - lifted_at)
         return 1
+
+    def _rest(self, seconds: float) -> None:
+        """Keep the fingers on the skin for ``seconds`` of session time (a swipe still
+        being drawn goes on to its end)."""
+        until = self.session.now + seconds
+        while self.session.now < until:
+            if self.mouse.pressed:
+                self.mouse.step()
+            time.sleep(0.005)
 
     def gripper(self) -> int:
         self.page.click("#gripper")

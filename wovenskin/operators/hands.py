@@ -68,6 +68,20 @@ def press_time(amount: float, speed: float, accel: float) -> float:
     return amount / speed
 
 
+def short_hold_s(
+    profile: Any, amount: float, full_speed: float, acting_s: float, lift_lag_s: float
+) -> float:
+    """How much longer a short move's gesture stays on the skin once its command acts: as
+    long as the mapping's speed ``profile`` takes to cover ``amount`` at ``full_speed``,
+    less the ``acting_s`` it has already run and how late a lift acts (``lift_lag_s``)."""
+    return max(0.0, profile.hold_for(amount, full_speed) - acting_s - lift_lag_s)
+
+
+def learn_lift_lag(lag_s: float, seen_s: float) -> float:
+    """The lift lag learnt after a lift whose command ended ``seen_s`` after it."""
+    return lag_s + LIFT_LAG_LEARNING * (seen_s - lag_s)
+
+
 def flip(command: str) -> str:
     """The same action the other way."""
     kind, axis = command.split()
@@ -284,8 +298,10 @@ class SkinHand(Hand):
         taken = yield from self._perform(axis, sign)
         if taken:
             since = self.session.state.gesture_since or self.session.now
-            hold = self.speed_profile.hold_for(amount, self.speed[kind])
-            yield Sleep(max(0.0, hold - (self.session.now - since) - self.lift_lag))
+            acting = self.session.now - since
+            yield Sleep(
+                short_hold_s(self.speed_profile, amount, self.speed[kind], acting, self.lift_lag)
+            )
         lifted_at = self.session.now
         self.skin.lift()
         if taken:
@@ -293,8 +309,7 @@ class SkinHand(Hand):
                 yield Until(lambda: self.session.state.gesture is None, 5.0, "the command ended")
             except Timeout:
                 return taken
-            lag = self.session.now - lifted_at
-            self.lift_lag += LIFT_LAG_LEARNING * (lag - self.lift_lag)
+            self.lift_lag = learn_lift_lag(self.lift_lag, self.session.now - lifted_at)
         return taken
 
     def gripper(self) -> Plan:
