@@ -46,6 +46,16 @@ def idle_session(tmp_path, seconds: float = 4.0, inputs=(), mapping=None) -> Con
     return session
 
 
+def untouched_session(tmp_path) -> ControlSession:
+    """A started session on the simulated arm and a simulated skin that nobody touches."""
+    session = open_session(
+        "sim:auto=0,speed=0,seed=4", "sim", recognizer=ContactMeans("swipe_up"),
+        poses=tmp_path / "poses.toml",
+    )  # fmt: skip
+    session.start()
+    return session
+
+
 def run_traced(session: ControlSession) -> list[dict]:
     records: list[dict] = []
     session._on_tick = lambda s: records.append(

@@ -1,6 +1,6 @@
 """A tiny, untrained TCN checkpoint for tests that need a model the pipeline can run: the
 shipped model's grid, window and classes, exported to ONNX like it, in a fraction of a
-second."""
+second; and the settings of a tiny simulated data set to train such models on."""
 
 from __future__ import annotations
 
@@ -15,6 +15,14 @@ from wovenskin.training.checkpoint import save_checkpoint
 from wovenskin.training.models import build_model
 
 HPARAMS = {"dim": 16, "n_blocks": 2, "stem_channels": 8}
+TINY_SIM_SET = dict(
+    n_recordings=3,
+    windows_per_recording=40,
+    invalid_windows_per_recording=10,
+    seconds_per_recording=20.0,
+    workers=1,
+)
+"""``generate_sim_dataset`` settings (all but the seed) for a data set built in seconds."""
 
 
 def save_tiny_model(

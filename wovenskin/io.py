@@ -3,7 +3,8 @@
 Every writer in wovenskin goes through these helpers: :func:`atomic_write_bytes` and
 :func:`atomic_write_text` write beside the target and rename over it (a crash leaves the
 old file or the new one, never half of one); :func:`to_jsonable` turns numpy scalars and
-arrays, paths and tuples into plain JSON values; :func:`dumps` is ``json.dumps`` with it.
+arrays, paths and tuples into plain JSON values; :func:`dumps` is ``json.dumps`` with it;
+:func:`plain_dict` reads a mapping or a settings object as a dict.
 Whether an existing output may be replaced at all is :mod:`wovenskin.outputs`' rule.
 """
 
@@ -13,7 +14,7 @@ import dataclasses
 import json
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
@@ -87,6 +88,17 @@ def to_jsonable(value: Any) -> Any:
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return to_jsonable(dataclasses.asdict(value))
     return value
+
+
+def plain_dict(value: Any, what: str) -> dict[str, Any]:
+    """A mapping, or a settings object with ``to_dict()``, as a new plain dict; anything
+    else is a ``TypeError`` naming ``what``."""
+    if isinstance(value, Mapping):
+        return dict(value)
+    to_dict = getattr(value, "to_dict", None)
+    if callable(to_dict):
+        return dict(to_dict())
+    raise TypeError(f"{what} must be a mapping or have to_dict(), got {type(value)}")
 
 
 def dumps(value: Any, **kwargs: Any) -> str:

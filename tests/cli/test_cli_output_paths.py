@@ -111,7 +111,7 @@ def test_run_refuses_its_trace_and_recording_before_the_session(tmp_path, blocke
 def test_training_commands_refuse_before_building_or_training(blocker, monkeypatch):
     work_must_not_start(
         monkeypatch,
-        "wovenskin.training.datasets.sim:run_jobs",
+        "wovenskin.training.datasets.streams:run_jobs",
         "wovenskin.training.report:evaluate_on_dataset",
     )
     out = blocker / "ds"

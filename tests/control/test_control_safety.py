@@ -16,6 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from wovenskin.bench.safety import joint_6_case
 from wovenskin.control.safety import SafetyLayer
 from wovenskin.control.safety_limits import SafetyLimits, StopEvent, cap_speeds, keep_in_box
 from wovenskin.robots.base import (
@@ -383,16 +384,8 @@ def test_joint_6_driven_fast_stops_outside_its_margin_on_the_simulated_arm(speed
     """The probe's case: joint 6 driven toward its limit came within 3.2 deg (60 deg/s) and
     1.5 deg (148 deg/s) of it with a 5 deg margin: the 20 ms look-ahead ignored the
     ~100 ms the arm takes to stop."""
-    q0 = tm5_900.INITIAL_Q.copy()
-    q0[5] = math.radians(230.0)
-    limits = SafetyLimits(
-        workspace_lower=[-2, -2, -2],
-        workspace_upper=[2, 2, 2],
-        max_angular_speed=math.radians(max(60.0, speed_deg)),
-    )
+    q0, limits, twist = joint_6_case(speed_deg)
     safe, robot, clock = layer(SimRobot(q0=q0), limits)
-    tool_axis = tm5_900.forward_kinematics(q0)[:3, 2]
-    twist = np.r_[0.0, 0.0, 0.0, tool_axis * math.radians(speed_deg)]
     upper = tm5_900.JOINT_LIMITS.upper[5]
     closest = min(upper - robot.state().q[5] for _ in drive(safe, clock, twist, 2.0))
     assert math.degrees(closest) >= math.degrees(limits.joint_margin) - 1e-6

@@ -13,6 +13,7 @@ import json
 import mujoco
 import numpy as np
 import pytest
+from session_helpers import untouched_session
 from stand_ins import ContactMeans
 
 from wovenskin.control.mapping import ActionMapping, PoseAction
@@ -170,13 +171,14 @@ class StallingSource:
         return [i for i in items if not hasattr(i, "values")] + frames
 
 
-def test_a_stalled_live_skin_stops_the_arm_by_the_wall_clock(tmp_path) -> None:
+def stalled_session(tmp_path, **options) -> ControlSession:
+    """A started session (with ``options``) on a swipe-up replay that goes silent halfway
+    through its first command, stepped to the stall; its wall clock gains 10 ms a reading."""
     stream = stream_of("swipe_up")
     path = tmp_path / "s.npz"
     write_labelled_stream(path, stream)
     mid = int(((stream.event_start_s[0] + stream.event_end_s[0]) / 2) * 200)
     live_skin = LiveSkin(StallingSource(path, mid))
-    recognizer = ContactMeans("swipe_up")
     clock = {"now": 0.0}
 
     def wall() -> float:
@@ -184,12 +186,17 @@ def test_a_stalled_live_skin_stops_the_arm_by_the_wall_clock(tmp_path) -> None:
         return clock["now"]
 
     session = ControlSession(
-        live_skin, LivePipeline.for_live_skin(live_skin, recognizer), SimRobot(),
-        wall_clock=wall,
+        live_skin, LivePipeline.for_live_skin(live_skin, ContactMeans("swipe_up")), SimRobot(),
+        wall_clock=wall, **options,
     )  # fmt: skip
     session.start()
     while session.state.ticks < mid - 120:  # calibration frames give no ticks
         session.step()
+    return session
+
+
+def test_a_stalled_live_skin_stops_the_arm_by_the_wall_clock(tmp_path) -> None:
+    session = stalled_session(tmp_path)
     assert session.state.gesture == "swipe_up" and session.state.robot.tcp_speed > 0.01
     assert not session.safety.stopped
     robot_t = session.state.robot.t
@@ -207,25 +214,8 @@ def test_a_stalled_live_skin_stops_the_arm_by_the_wall_clock(tmp_path) -> None:
 
 
 def test_a_stall_is_traced_from_the_idle_loop(tmp_path) -> None:
-    stream = stream_of("swipe_up")
-    path = tmp_path / "s.npz"
-    write_labelled_stream(path, stream)
-    mid = int(((stream.event_start_s[0] + stream.event_end_s[0]) / 2) * 200)
-    live_skin = LiveSkin(StallingSource(path, mid))
-    clock = {"now": 0.0}
-
-    def wall() -> float:
-        clock["now"] += 0.01
-        return clock["now"]
-
     buffer = io.StringIO()
-    session = ControlSession(
-        live_skin, LivePipeline.for_live_skin(live_skin, ContactMeans("swipe_up")), SimRobot(),
-        trace=TraceWriter(buffer), wall_clock=wall,
-    )  # fmt: skip
-    session.start()
-    while session.state.ticks < mid - 120:
-        session.step()
+    session = stalled_session(tmp_path, trace=TraceWriter(buffer))
     last_tick = session.state.t
     for _ in range(50):
         session.step(timeout=0)
@@ -264,24 +254,7 @@ def test_a_huge_jump_in_replay_time_is_capped_and_reported(tmp_path, monkeypatch
 
 
 def test_a_host_pause_does_not_stop_a_replay_played_faster_than_real_time(tmp_path) -> None:
-    stream = stream_of("swipe_up")
-    path = tmp_path / "s.npz"
-    write_labelled_stream(path, stream)
-    mid = int(((stream.event_start_s[0] + stream.event_end_s[0]) / 2) * 200)
-    live_skin = LiveSkin(StallingSource(path, mid))
-    clock = {"now": 0.0}
-
-    def wall() -> float:
-        clock["now"] += 0.01
-        return clock["now"]
-
-    session = ControlSession(
-        live_skin, LivePipeline.for_live_skin(live_skin, ContactMeans("swipe_up")), SimRobot(),
-        settings=SessionSettings(wall_clock_stalls=False), wall_clock=wall,
-    )  # fmt: skip
-    session.start()
-    while session.state.ticks < mid - 120:
-        session.step()
+    session = stalled_session(tmp_path, settings=SessionSettings(wall_clock_stalls=False))
     for _ in range(30):  # 0.3 s of wall time without frames: the host paused, not the skin
         session.step(timeout=0)
     assert not session.safety.stopped
@@ -451,11 +424,7 @@ def test_the_speed_scale_slows_gesture_motion(tmp_path, swipe_up_run) -> None:
 
 
 def _idle_session(tmp_path) -> ControlSession:
-    session = open_session(
-        "sim:auto=0,speed=0,seed=4", "sim", recognizer=ContactMeans("swipe_up"),
-        poses=tmp_path / "poses.toml",
-    )  # fmt: skip
-    session.start()
+    session = untouched_session(tmp_path)
     while session.state.robot is None or session.live_skin.state.calibrating:
         session.step()
     return session

@@ -5,6 +5,7 @@ recogniser's hesitation (:func:`unsure_line`)."""
 from __future__ import annotations
 
 import numpy as np
+from session_helpers import untouched_session
 from stand_ins import ContactMeans
 
 from wovenskin.control.safety import SafetyLayer
@@ -76,11 +77,7 @@ def test_a_session_held_at_the_box_floor_says_so_while_the_gesture_lasts(tmp_pat
 
 
 def test_a_latched_stop_says_how_it_ends(tmp_path) -> None:
-    session = open_session(
-        "sim:auto=0,speed=0,seed=4", "sim", recognizer=ContactMeans("swipe_up"),
-        poses=tmp_path / "poses.toml",
-    )  # fmt: skip
-    session.start()
+    session = untouched_session(tmp_path)
     try:
         session.emergency_stop("stop button")
         assert session.holding() == ("STOP pressed: Resume (or space) to move again",)

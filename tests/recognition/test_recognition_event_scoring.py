@@ -135,15 +135,22 @@ def test_aggregate_pools_counts_and_latencies() -> None:
     assert per_class_table(total).row_count == 2
 
 
-def test_score_stream_uses_the_stream_events_and_length() -> None:
-    stream = LabelledStream(
+def stream_with_events(events_metadata) -> LabelledStream:
+    """12 s at 200 Hz with a swipe_up at 2 s and an invalid touch at 6 s; ``events_metadata``
+    (unless None) is its ``metadata["events"]``."""
+    return LabelledStream(
         frames=np.zeros((2400, 2, 2), dtype=np.float32),
         t=np.arange(2400) / 200.0,
         sample_rate_hz=200.0,
         event_start_s=np.array([2.0, 6.0]),
         event_end_s=np.array([2.5, 6.5]),
         event_labels=np.array(["swipe_up", "invalid"]),
+        metadata={} if events_metadata is None else {"events": events_metadata},
     )
+
+
+def test_score_stream_uses_the_stream_events_and_length() -> None:
+    stream = stream_with_events(None)
     s = score_stream(log((2.2, "swipe_up"), (2.6, None), (6.1, "push")), stream)
     assert (s.duration_s, s.n_detected, s.n_false, s.n_invalid_acted) == (12.0, 1, 1, 1)
     assert s.false_per_min == pytest.approx(5.0)
@@ -187,18 +194,6 @@ def test_aggregate_pools_motion_latencies_and_tables_show_them() -> None:
     assert "motion ms" in [str(col.header) for col in table.columns]
     motion_column = next(col for col in table.columns if str(col.header) == "motion ms")
     assert list(motion_column.cells) == ["50", "-", "200"]
-
-
-def stream_with_events(events_metadata) -> LabelledStream:
-    return LabelledStream(
-        frames=np.zeros((2400, 2, 2), dtype=np.float32),
-        t=np.arange(2400) / 200.0,
-        sample_rate_hz=200.0,
-        event_start_s=np.array([2.0, 6.0]),
-        event_end_s=np.array([2.5, 6.5]),
-        event_labels=np.array(["swipe_up", "invalid"]),
-        metadata={} if events_metadata is None else {"events": events_metadata},
-    )
 
 
 def test_score_stream_takes_motion_starts_from_simulated_metadata() -> None:

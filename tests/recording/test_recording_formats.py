@@ -248,15 +248,6 @@ BAD_STREAMS = {
 }
 
 
-@pytest.mark.parametrize("case", sorted(BAD_STREAMS))
-def test_bad_stream_gives_a_clear_error(tmp_path, case):
-    arrays, words = BAD_STREAMS[case]
-    path = save(tmp_path / "bad.npz", arrays)
-    with pytest.raises(FormatError) as excinfo:
-        read_labelled_stream(path)
-    assert_one_line_error(excinfo, path, *words)
-
-
 BAD_CAPTURES = {
     "missing key": (with_change(captures_arrays(), groups=None), ["missing key 'groups'"]),
     "frames 3-D": (with_change(captures_arrays(), frames=np.zeros((6, 8, 9))), ["(N, T, R, C)"]),
@@ -285,12 +276,18 @@ BAD_CAPTURES = {
 }
 
 
-@pytest.mark.parametrize("case", sorted(BAD_CAPTURES))
-def test_bad_captures_give_a_clear_error(tmp_path, case):
-    arrays, words = BAD_CAPTURES[case]
+BAD_FILES = {
+    **{f"stream: {case}": (read_labelled_stream, *bad) for case, bad in BAD_STREAMS.items()},
+    **{f"captures: {case}": (read_labelled_captures, *bad) for case, bad in BAD_CAPTURES.items()},
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_a_bad_file_gives_a_clear_error(tmp_path, case):
+    read, arrays, words = BAD_FILES[case]
     path = save(tmp_path / "bad.npz", arrays)
     with pytest.raises(FormatError) as excinfo:
-        read_labelled_captures(path)
+        read(path)
     assert_one_line_error(excinfo, path, *words)
 
 

@@ -34,22 +34,42 @@ def assert_same_direction(achieved: np.ndarray, commanded: np.ndarray) -> None:
     assert cos > 0.999
 
 
+def rotation_angle(rotation: np.ndarray) -> float:
+    """The angle (rad) that the rotation matrix ``rotation`` turns through."""
+    return float(np.arccos(np.clip((np.trace(rotation) - 1) / 2, -1, 1)))
+
+
+def follow_twist(
+    ik: DifferentialIK, twist: np.ndarray, steps: int
+) -> tuple[np.ndarray, np.ndarray, IKInfo]:
+    """The TCP pose before and after ``steps`` IK steps of ``twist`` from the initial
+    joints, with the last step's info."""
+    q = tm5_900.INITIAL_Q.copy()
+    start = tm5_900.forward_kinematics(q)
+    for _ in range(steps):
+        velocity, info = ik.step(q, twist, DT)
+        q = q + velocity * DT
+    return start, tm5_900.forward_kinematics(q), info
+
+
+def joint_speed_ratio(q: np.ndarray, twist: np.ndarray) -> float:
+    """The largest joint speed that ``twist`` needs at ``q``, over that joint's limit."""
+    unlimited = np.linalg.solve(tm5_900.jacobian(q), twist)
+    return float(np.max(np.abs(unlimited) / LIMITS.max_speed))
+
+
 @settings(max_examples=50, deadline=None)
 @given(direction=unit_vectors(3), speed=st.floats(0.01, 0.25))
 def test_linear_twist_moves_the_tcp_that_way_at_that_speed(
     ik: DifferentialIK, direction: np.ndarray, speed: float
 ) -> None:
-    q = tm5_900.INITIAL_Q.copy()
-    start = tm5_900.forward_kinematics(q)
     steps = 25
-    for _ in range(steps):
-        velocity, info = ik.step(q, np.concatenate([speed * direction, np.zeros(3)]), DT)
-        q = q + velocity * DT
-    end = tm5_900.forward_kinematics(q)
+    twist = np.concatenate([speed * direction, np.zeros(3)])
+    start, end, info = follow_twist(ik, twist, steps)
     moved = (end[:3, 3] - start[:3, 3]) / (steps * DT)
     assert info.limited_by is None and info.scale == 1.0
     assert np.linalg.norm(moved - speed * direction) < 0.02 * speed
-    assert np.arccos(np.clip((np.trace(start[:3, :3].T @ end[:3, :3]) - 1) / 2, -1, 1)) < 1e-5
+    assert rotation_angle(start[:3, :3].T @ end[:3, :3]) < 1e-5
 
 
 @settings(max_examples=50, deadline=None)
@@ -57,15 +77,10 @@ def test_linear_twist_moves_the_tcp_that_way_at_that_speed(
 def test_angular_twist_turns_the_tool_about_a_fixed_tcp(
     ik: DifferentialIK, axis: np.ndarray, rate: float
 ) -> None:
-    q = tm5_900.INITIAL_Q.copy()
-    start = tm5_900.forward_kinematics(q)
     steps = 25
-    for _ in range(steps):
-        velocity, _ = ik.step(q, np.concatenate([np.zeros(3), rate * axis]), DT)
-        q = q + velocity * DT
-    end = tm5_900.forward_kinematics(q)
+    start, end, _ = follow_twist(ik, np.concatenate([np.zeros(3), rate * axis]), steps)
     relative = end[:3, :3] @ start[:3, :3].T
-    angle = np.arccos(np.clip((np.trace(relative) - 1) / 2, -1, 1))
+    angle = rotation_angle(relative)
     turned_axis = np.array(
         [
             relative[2, 1] - relative[1, 2],
@@ -85,8 +100,7 @@ def test_joint_speed_limit_scales_the_whole_twist(
 ) -> None:
     q = tm5_900.INITIAL_Q.copy()
     twist = magnitude * direction
-    unlimited = np.linalg.solve(tm5_900.jacobian(q), twist)
-    assume(np.max(np.abs(unlimited) / LIMITS.max_speed) > 1.05)
+    assume(joint_speed_ratio(q, twist) > 1.05)
     velocity, info = ik.step(q, twist, DT)
     assert np.all(np.abs(velocity) <= LIMITS.max_speed * (1 + 1e-6))
     assert 0.0 < info.scale < 1.0
@@ -105,8 +119,7 @@ def test_twists_within_the_joint_speeds_are_not_scaled(
 ) -> None:
     q = tm5_900.INITIAL_Q.copy()
     twist = magnitude * direction
-    unlimited = np.linalg.solve(tm5_900.jacobian(q), twist)
-    assume(np.max(np.abs(unlimited) / LIMITS.max_speed) < 0.95)
+    assume(joint_speed_ratio(q, twist) < 0.95)
     velocity, info = ik.step(q, twist, DT)
     assert info.scale == 1.0 and info.limited_by is None
     np.testing.assert_allclose(tm5_900.jacobian(q) @ velocity, twist, atol=0.02 * magnitude)

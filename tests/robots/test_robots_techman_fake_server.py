@@ -9,6 +9,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from stand_ins import wait_until
 
 from wovenskin.robots.techman.ethernet_slave import SvrMode, read_items, split_frame
 from wovenskin.robots.techman.fake_server import FakeListenNode, main
@@ -123,7 +124,7 @@ def test_velocity_is_integrated_into_the_tcp(fake: FakeListenNode, link: Link) -
     link.script("1", "ContinueVLine(300,2000)\r\nSetContinueVLine(100,0,-50,0,0,0)")
     time.sleep(0.2)
     link.script("2", "StopContinueVmode()")
-    assert wait_for(lambda: not np.any(fake.measured_velocity))
+    assert wait_until(lambda: not np.any(fake.measured_velocity))
     moved = fake.tcp_wire() - start
     assert 5.0 < moved[0] < 60.0
     assert moved[2] == pytest.approx(-moved[0] / 2, rel=1e-6)
@@ -131,21 +132,12 @@ def test_velocity_is_integrated_into_the_tcp(fake: FakeListenNode, link: Link) -
     assert fake.velocity_mode_exits[-1][1] == "StopContinueVmode"
 
 
-def wait_for(condition, timeout: float = 15.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.005)
-    return condition()
-
-
 def test_joint_move_and_queue_tag(fake: FakeListenNode, link: Link) -> None:
     reply = link.script("1", 'PTP("JPP",9,0,0,0,0,-9,50,200,0,false)\r\nQueueTag(3)')
     assert reply == "1,OK"
     link.send_raw(encode_packet("TMSTA", "01,3"))
     assert link.receive() == Packet("TMSTA", "01,03,false")
-    assert wait_for(lambda: fake.tag_status(3) == "true")  # 9 deg at 90 deg/s
+    assert wait_until(lambda: fake.tag_status(3) == "true")  # 9 deg at 90 deg/s
     link.send_raw(encode_packet("TMSTA", "01,3"))
     assert link.receive() == Packet("TMSTA", "01,03,true")
     np.testing.assert_allclose(fake.q_deg, [9, 0, 0, 0, 0, -9])
@@ -157,7 +149,7 @@ def test_line_move_reaches_the_pose(fake: FakeListenNode, link: Link) -> None:
     assert (
         link.script("1", 'Line("CAP",420,10,400,180,0,90,200,100,0,false)\r\nQueueTag(1)') == "1,OK"
     )
-    assert wait_for(lambda: fake.tag_status(1) == "true")
+    assert wait_until(lambda: fake.tag_status(1) == "true")
     np.testing.assert_allclose(fake.tcp_wire()[:3], [420, 10, 400], atol=1e-6)
 
 
@@ -212,6 +204,6 @@ def test_joint_moves_update_the_tcp_through_fk() -> None:
     with FakeListenNode(fk=fk) as node:
         link = Link(node.listen_port)
         link.script("1", 'PTP("JPP",20,0,0,0,0,0,100,200,0,false)\r\nQueueTag(2)')
-        assert wait_for(lambda: node.tag_status(2) == "true")
+        assert wait_until(lambda: node.tag_status(2) == "true")
         np.testing.assert_allclose(node.tcp_wire()[:3], [320.0, 0.0, 500.0])
         link.sock.close()

@@ -154,28 +154,29 @@ def test_small_negative_deviation_is_left_to_slow_tracking():
     assert (tracker.baseline == 10.0).all()
 
 
-def test_a_weak_endless_contact_is_rebaselined_as_stale():
-    config = ConditioningConfig(stale_contact_s=1.0, common_drift=False)
+def _assert_rebaselined_after(config: ConditioningConfig, reading: float, blocks: int) -> None:
+    """A contact held at (4, 4) reading ``reading`` (the rest at the 10.0 baseline) keeps the
+    baseline for ``blocks - 1`` blocks and becomes it in block ``blocks``."""
     tracker = BaselineTracker(_calibration(10.0), config)
     level = np.full(SHAPE, 10.0)
-    level[4, 4] = 10.05  # +0.5 %: a baseline error that keeps itself active
-    for _ in range(config.stale_contact_blocks - 1):
+    level[4, 4] = reading
+    for _ in range(blocks - 1):
         _run_block(tracker, level, _one(4, 4))
     assert tracker.baseline[4, 4] == 10.0
     _run_block(tracker, level, _one(4, 4))
-    assert tracker.baseline[4, 4] == 10.05
+    assert tracker.baseline[4, 4] == reading
+
+
+def test_a_weak_endless_contact_is_rebaselined_as_stale():
+    config = ConditioningConfig(stale_contact_s=1.0, common_drift=False)
+    # +0.5 %: a baseline error that keeps itself active
+    _assert_rebaselined_after(config, 10.05, config.stale_contact_blocks)
 
 
 def test_a_firm_long_press_is_kept_until_max_contact():
     config = ConditioningConfig(stale_contact_s=0.5, max_contact_s=2.0, common_drift=False)
-    tracker = BaselineTracker(_calibration(10.0), config)
-    level = np.full(SHAPE, 10.0)
-    level[4, 4] = 12.0  # +20 %: far above stale_contact_rel
-    for _ in range(config.max_contact_blocks - 1):
-        _run_block(tracker, level, _one(4, 4))
-    assert tracker.baseline[4, 4] == 10.0
-    _run_block(tracker, level, _one(4, 4))
-    assert tracker.baseline[4, 4] == 12.0
+    # +20 %: far above stale_contact_rel
+    _assert_rebaselined_after(config, 12.0, config.max_contact_blocks)
 
 
 def test_block_level_is_the_median_so_short_glitches_do_not_move_the_baseline():

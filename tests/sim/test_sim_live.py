@@ -1,11 +1,17 @@
 """Tests of the live simulated skin source (wovenskin.sim.live).
 
-Timing is checked loosely only (frames arrive, in order, not absurdly early).
+No test depends on how fast the machine runs: paced sources run on a :class:`_Clock` that
+only the test advances, a frame at a time, and the test waits for the producer thread to
+render all that is due before it polls or touches (:func:`_frames_for`), so which frames a
+touch lands between is fixed by the clock alone.  The one test on the real clock checks
+only that frames never run ahead of it.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -27,6 +33,93 @@ def collect(source: SimulatedSkinSource, frames: int, guard_s: float = 20.0) -> 
     while len(out) < frames and time.monotonic() < deadline:
         out += [item for item in source.poll(0.05) if isinstance(item, Frame)]
     return out
+
+
+@contextmanager
+def _running(source: SimulatedSkinSource) -> Iterator[SimulatedSkinSource]:
+    """``source`` started for the ``with`` block and closed after it, however it ends."""
+    source.start()
+    try:
+        yield source
+    finally:
+        source.close()
+
+
+class _Clock:
+    """A wall clock for ``SimulatedSkinSource(clock=...)`` that moves only when told to."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _settle(source: SimulatedSkinSource) -> None:
+    """Wait until ``source``'s producer has rendered all it will before its clock moves
+    again: the frames due and the lookahead (the wait's guard only prevents a hang)."""
+    guard = time.monotonic() + 20.0
+    with source._cond:
+        source._cond.notify_all()  # the producer may be waiting out its 20 ms nap
+        while source._rendered < source._render_target():
+            assert time.monotonic() < guard, "the simulated skin stopped rendering"
+            source._cond.wait(0.05)
+
+
+def _due(source: SimulatedSkinSource) -> list[Frame]:
+    """The frames due by ``source``'s clock now, once its producer has settled."""
+    _settle(source)
+    return [item for item in source.poll(0.0) if isinstance(item, Frame)]
+
+
+def _frames_for(source: SimulatedSkinSource, clock: _Clock, seconds: float) -> np.ndarray:
+    """The frames' values ``source`` delivers while ``clock`` advances ``seconds``, polled
+    a frame at a time (:func:`_due`)."""
+    frames = []
+    for _ in range(int(round(seconds * FS))):
+        clock.now += 1.0 / FS
+        frames += [f.values for f in _due(source)]
+    return np.asarray(frames)
+
+
+@contextmanager
+def _stalled(source: SimulatedSkinSource, clock: _Clock, seconds: float) -> Iterator[None]:
+    """For the ``with`` block, ``clock`` moved ``seconds`` on with ``source``'s producer
+    stalled (a busy machine: it renders nothing meanwhile), so a touch sent in the block
+    finds the rendered stream that much short of the lookahead."""
+    with source._cond:  # the producer renders only with the lock
+        clock.now += seconds
+        yield
+
+
+# Each sample sent with the producer keeping up, or after it stalled for the last 10 or 40 ms
+# (the rendered stream short of the lookahead by as much: a busy machine).
+_STALLS = pytest.mark.parametrize("stall_s", [0.0, 0.01, 0.04], ids=["keeping-up", "10ms", "40ms"])
+
+
+def _virtual_skin(seed: int) -> tuple[SimulatedSkinSource, _Clock]:
+    """A resting simulated skin as the dashboard opens it for outside fingertips (30 ms
+    lookahead), paced by a clock the test advances."""
+    clock = _Clock()
+    return SimulatedSkinSource(seed=seed, autonomous=False, lookahead_s=0.03, clock=clock), clock
+
+
+def _spy_on_tracks(source: SimulatedSkinSource, keep: Callable[[object], object]) -> list:
+    """What ``keep`` makes of every contact track ``source``'s skin model renders, in order."""
+    kept: list = []
+    render = source._model.render
+
+    def spy(contacts=(), n_frames=None, bursts=(), offset=0):
+        kept.extend(keep(track) for track in contacts)
+        return render(contacts, n_frames, bursts, offset)
+
+    source._model.render = spy
+    return kept
+
+
+def _track_path(track) -> np.ndarray:
+    """A rendered contact track as rows of x (mm), y (mm) and force (N)."""
+    return np.stack([track.x_mm, track.y_mm, track.force_n], axis=1)
 
 
 def test_from_options_parses_every_option():
@@ -98,8 +191,7 @@ def test_perform_queues_the_next_gesture_and_the_truth_is_reported():
     src = SimulatedSkinSource(
         seed=2, speed=0, gestures=["swipe_up"], invalid_fraction=0.0, max_batch=4
     )
-    src.start()
-    try:
+    with _running(src):
         src.perform("pinch_out_5f")
         labels = set()
         deadline = time.monotonic() + 20.0
@@ -120,71 +212,72 @@ def test_perform_queues_the_next_gesture_and_the_truth_is_reported():
         while time.monotonic() < deadline and len(src.events) < 4:
             src.poll(0.05)
         assert src.events[3].label == "invalid" and src.events[3].invalid_kind == "palm"
-    finally:
-        src.close()
 
 
-def test_real_time_pacing_is_roughly_the_sample_rate():
+@pytest.mark.parametrize("speed", [1.0, 2.0])
+def test_frames_are_paced_by_the_clock(speed):
+    """Frame ``k`` is due ``k / (speed x 200 Hz)`` after the start, stamped with the clock."""
+    clock = _Clock()
+    src = SimulatedSkinSource(seed=3, speed=speed, clock=clock)
+    with _running(src):
+        frames: list[Frame] = []
+        for k in range(60):
+            clock.now = (k + 0.25) / FS  # between frames: no rounding at a frame's edge
+            new = _due(src)
+            assert len(frames) + len(new) == int((k + 0.25) * speed) + 1  # exactly those due
+            assert all(f.t_host == clock.now for f in new)
+            frames += new
+        assert [f.seq for f in frames] == list(range(len(frames)))
+
+
+def test_frames_never_run_ahead_of_the_real_clock():
     src = SimulatedSkinSource(seed=3, speed=1.0)
-    src.start()
-    try:
-        began = time.monotonic()
+    began = time.monotonic()
+    with _running(src):
         frames = collect(src, 60)
         elapsed = time.monotonic() - began
-        assert len(frames) >= 60
-        # Frames never run ahead of the wall clock (allowing for the first frame at t=0).
-        assert frames[-1].t <= elapsed + 0.1
-        assert all(b.seq == a.seq + 1 for a, b in zip(frames, frames[1:], strict=False))
-    finally:
-        src.close()
+    assert len(frames) >= 60
+    assert frames[-1].t <= elapsed  # frame k is handed out k / 200 Hz after the start, not before
+    assert all(b.seq == a.seq + 1 for a, b in zip(frames, frames[1:], strict=False))
 
 
 def test_stop_pauses_and_start_resumes():
-    src = SimulatedSkinSource(seed=4, speed=1.0)
-    src.start()
-    try:
-        assert collect(src, 10)
+    clock = _Clock()
+    src = SimulatedSkinSource(seed=4, speed=1.0, clock=clock)
+    with _running(src):
+        clock.now = 10.5 / FS  # mid-frame: 11 frames due
+        _settle(src)
         src.send_command("stop")
-        src.poll(0.05)  # frames already due are still handed out
-        assert [i for i in src.poll(0.3) if isinstance(i, Frame)] == []
+        assert len(_due(src)) == 11  # frames due at the stop are still handed out
+        clock.now += 0.3
+        assert _due(src) == []  # paused: nothing more, however long
         src.send_command("start")
-        assert collect(src, 10)
+        clock.now += 10 / FS
+        assert [f.seq for f in _due(src)] == list(range(11, 21))  # resumed where it paused
         src.send_command("recalibrate")
         with pytest.raises(ValueError, match="unknown skin command"):
             src.send_command("explode")
-    finally:
-        src.close()
 
 
 # -- outside fingertips (the dashboard's virtual skin) ----------------------------------------
 
 
-def _frames_for(source, seconds: float) -> np.ndarray:
-    frames, deadline = [], time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        frames += [f.values for f in source.poll(0.05) if isinstance(f, Frame)]
-    return np.asarray(frames)
-
-
 def test_outside_fingertips_press_where_they_are_put_and_lift_off():
-    source = SimulatedSkinSource(seed=5, autonomous=False, lookahead_s=0.03)
-    source.start()
-    try:
-        rest = _frames_for(source, 0.4).mean(axis=0)
+    source, clock = _virtual_skin(5)
+    with _running(source):
+        rest = _frames_for(source, clock, 0.4).mean(axis=0)
         source.set_touches({7: Fingertip(x_mm=75.0, y_mm=21.0, force_n=1.5)})  # row 1, col 7
         assert source.touching
-        pressed = _frames_for(source, 0.3)[-10:].mean(axis=0) - rest
+        pressed = _frames_for(source, clock, 0.3)[-10:].mean(axis=0) - rest
         assert np.unravel_index(np.argmax(pressed), pressed.shape) == (1, 7)
         source.set_touches({7: Fingertip(x_mm=25.0, y_mm=119.0, force_n=1.5)})  # row 8, col 2
-        moved = _frames_for(source, 0.3)[-10:].mean(axis=0) - rest
+        moved = _frames_for(source, clock, 0.3)[-10:].mean(axis=0) - rest
         assert np.unravel_index(np.argmax(moved), moved.shape) == (8, 2)
         source.set_touches({})
-        lifted = _frames_for(source, 0.5)[-10:].mean(axis=0) - rest
+        lifted = _frames_for(source, clock, 0.5)[-10:].mean(axis=0) - rest
         assert not source.touching
         assert lifted.max() < 0.2 * moved.max()
         assert source.current_label() is None  # outside touches are not the person's events
-    finally:
-        source.close()
 
 
 @pytest.mark.parametrize(
@@ -213,15 +306,14 @@ def test_the_lookahead_option_is_checked():
 
 
 def test_timestamped_touches_keep_their_timing_however_bunched_they_arrive():
-    source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
-    source.start()
-    try:
-        rest = _frames_for(source, 0.4).mean(axis=0)
+    source, clock = _virtual_skin(6)
+    with _running(source):
+        rest = _frames_for(source, clock, 0.4).mean(axis=0)
         # 0.4 s of a finger sliding from row 8 to row 1 (y 119 -> 21 mm), sent all at once
         for k in range(41):
             y = 119.0 - 98.0 * k / 40
             source.set_touches({1: Fingertip(50.0, y, 1.5)}, client_t=100.0 + 0.01 * k)
-        frames = _frames_for(source, 0.8) - rest
+        frames = _frames_for(source, clock, 0.8) - rest
         source.set_touches({}, client_t=100.5)
         peaks = np.array([np.unravel_index(np.argmax(f), f.shape)[0] for f in frames])
         strong = np.array([f.max() for f in frames]) > 0.3 * frames.max()
@@ -230,8 +322,6 @@ def test_timestamped_touches_keep_their_timing_however_bunched_they_arrive():
         first, last = np.flatnonzero(rows <= 6)[0], np.flatnonzero(rows >= 3)[-1]
         assert 40 <= last - first <= 100  # ~0.3 s of frames between rows 6 and 3: not a jump
         assert np.all(np.diff(rows) <= 1)  # it never goes back down
-    finally:
-        source.close()
 
 
 def test_a_touch_time_must_be_finite():
@@ -241,65 +331,56 @@ def test_a_touch_time_must_be_finite():
 
 
 def test_a_sender_clock_that_jumps_ahead_cannot_hold_back_the_touch():
-    source = SimulatedSkinSource(seed=3, autonomous=False, lookahead_s=0.03)
-    source.start()
-    try:
-        rest = _frames_for(source, 0.3).mean(axis=0)
+    source, clock = _virtual_skin(3)
+    with _running(source):
+        rest = _frames_for(source, clock, 0.3).mean(axis=0)
         source.set_touches({1: Fingertip(50.0, 20.0, 1.5)}, client_t=10.0)
         source.set_touches({1: Fingertip(50.0, 120.0, 1.5)}, client_t=1e6)  # 11 days later
-        frames = _frames_for(source, 0.5) - rest
+        frames = _frames_for(source, clock, 0.5) - rest
         rows = [np.unravel_index(np.argmax(f), f.shape)[0] for f in frames[-20:]]
         assert min(rows) >= 7  # the finger is where the second sample put it, now
-    finally:
-        source.close()
 
 
 def test_a_lifted_outside_fingertip_goes_at_once():
-    source = SimulatedSkinSource(seed=2, autonomous=False, lookahead_s=0.03)
-    source.start()
-    try:
-        _frames_for(source, 0.3)
+    source, clock = _virtual_skin(2)
+    forces = _spy_on_tracks(source, lambda track: track.force_n)
+    with _running(source):
+        _frames_for(source, clock, 0.3)
         source.set_touches({1: Fingertip(40.0, 60.0, 1.0)}, client_t=5.0)
-        _frames_for(source, 0.2)
+        _frames_for(source, clock, 0.2)
+        assert source.touching and forces[-1][-1] == 1.0
+        pressed = len(forces)
         source.set_touches({}, client_t=5.2)
-        lifted_at = time.monotonic()
-        while source.touching and time.monotonic() - lifted_at < 2.0:
-            _frames_for(source, 0.01)
-        gone_after = time.monotonic() - lifted_at
+        frames = 0
+        while source.touching and frames < FS:
+            _frames_for(source, clock, 1.0 / FS)
+            frames += 1
         assert not source.touching
-        # the force is gone in the next frame, the fringe field within 4 x 5 ms; the rest
-        # is the lookahead already rendered and the polling (generous for a busy machine)
-        assert gone_after < 1.0
-    finally:
-        source.close()
+    lifting = np.concatenate(forces[pressed:])
+    assert len(lifting) and not lifting.any()  # the force is gone in the next frame rendered
+    # ... and the fringe field within 4 x 5 ms more: all within the lookahead (30 ms) of
+    # the clock
+    assert frames <= 0.03 * FS
 
 
-def test_sparse_samples_are_reconstructed_as_a_path_not_jumps():
+@_STALLS
+def test_sparse_samples_are_reconstructed_as_a_path_not_jumps(stall_s):
     """A busy page sends a stroke as a few samples, each arriving after the fingertip has
     already reached the previous one: the fingertip must still slide frame by frame at the
     drawn speed (a 10-20 mm jump between two frames looks like two fingers)."""
-    source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
-    rendered: list[np.ndarray] = []
-    render = source._model.render
-
-    def spy(contacts=(), n_frames=None, bursts=(), offset=0):
-        for track in contacts:
-            rendered.append(np.stack([track.y_mm, track.force_n], axis=1))
-        return render(contacts, n_frames, bursts, offset)
-
-    source._model.render = spy
-    source.start()
-    try:
-        _frames_for(source, 0.2)
+    source, clock = _virtual_skin(6)
+    rendered = _spy_on_tracks(source, _track_path)
+    with _running(source):
+        _frames_for(source, clock, 0.2)
         for k in range(6):  # 0.4 s from y 119 to 21 mm in 6 samples, 80 ms apart, sent live
-            source.set_touches({1: Fingertip(50.0, 119.0 - 98.0 * k / 5, 1.5)}, time.monotonic())
-            _frames_for(source, 0.08)
-        source.set_touches({}, time.monotonic())
-        _frames_for(source, 0.5)
-    finally:
-        source.close()
+            _frames_for(source, clock, 0.08 - stall_s)
+            with _stalled(source, clock, stall_s):
+                source.set_touches({1: Fingertip(50.0, 119.0 - 98.0 * k / 5, 1.5)}, clock())
+        _frames_for(source, clock, 0.08)
+        source.set_touches({}, clock())
+        _frames_for(source, clock, 0.5)
     path = np.concatenate(rendered)
-    y = path[path[:, 1] > 0.5, 0]  # frames in firm contact
+    y = path[path[:, 2] > 0.5, 1]  # frames in firm contact
     assert y[0] > 110 and y[-1] < 30
     steps = np.abs(np.diff(y))
     assert steps.max() < 3.0, f"the fingertip jumped {steps.max():.1f} mm in one frame"
@@ -307,33 +388,24 @@ def test_sparse_samples_are_reconstructed_as_a_path_not_jumps():
     assert 50 <= moving <= 110  # ~0.4 s of sliding at 200 frames/s: the drawn speed
 
 
-def test_sparse_samples_on_a_circle_follow_the_circle_not_its_chords():
+@_STALLS
+def test_sparse_samples_on_a_circle_follow_the_circle_not_its_chords(stall_s):
     """A busy page sends a circle as a few samples 60 degrees apart: between them the
     fingertip must follow the curve through the last three samples (the chords of a
     hexagon cut 2.7 mm inside a 20 mm circle and read as two-finger swipes)."""
-    source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
-    rendered: list[np.ndarray] = []
-    render = source._model.render
-
-    def spy(contacts=(), n_frames=None, bursts=(), offset=0):
-        for track in contacts:
-            rendered.append(np.stack([track.x_mm, track.y_mm, track.force_n], axis=1))
-        return render(contacts, n_frames, bursts, offset)
-
-    source._model.render = spy
-    source.start()
-    try:
-        _frames_for(source, 0.2)
+    source, clock = _virtual_skin(6)
+    rendered = _spy_on_tracks(source, _track_path)
+    with _running(source):
+        _frames_for(source, clock, 0.2)
         for k in range(9):  # 480 degrees of a 20 mm circle in 9 samples, 80 ms apart, live
             angle = np.radians(60.0 * k)
             tip = Fingertip(50.0 + 20.0 * np.cos(angle), 70.0 + 20.0 * np.sin(angle), 1.5)
-            source.set_touches({1: tip}, time.monotonic())
-            _frames_for(source, 0.08)
-        _frames_for(source, 0.3)
-        source.set_touches({}, time.monotonic())
-        _frames_for(source, 0.3)
-    finally:
-        source.close()
+            _frames_for(source, clock, 0.08 - stall_s)
+            with _stalled(source, clock, stall_s):
+                source.set_touches({1: tip}, clock())
+        _frames_for(source, clock, 0.38)
+        source.set_touches({}, clock())
+        _frames_for(source, clock, 0.3)
     path = np.concatenate(rendered)
     path = path[path[:, 2] > 0.5]  # frames in firm contact
     dx, dy = path[:, 0] - 50.0, path[:, 1] - 70.0
@@ -347,29 +419,20 @@ def test_sparse_samples_on_a_circle_follow_the_circle_not_its_chords():
     assert steps.max() < 3.0  # still frame by frame, no jumps
 
 
-def test_sparse_samples_on_a_line_stay_on_the_line():
+@_STALLS
+def test_sparse_samples_on_a_line_stay_on_the_line(stall_s):
     """Three or more collinear sparse samples give a straight stroke, not a curve."""
-    source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
-    rendered: list[np.ndarray] = []
-    render = source._model.render
-
-    def spy(contacts=(), n_frames=None, bursts=(), offset=0):
-        for track in contacts:
-            rendered.append(np.stack([track.x_mm, track.y_mm, track.force_n], axis=1))
-        return render(contacts, n_frames, bursts, offset)
-
-    source._model.render = spy
-    source.start()
-    try:
-        _frames_for(source, 0.2)
+    source, clock = _virtual_skin(6)
+    rendered = _spy_on_tracks(source, _track_path)
+    with _running(source):
+        _frames_for(source, clock, 0.2)
         for d in (0.0, 5.0, 20.0, 30.0, 55.0, 60.0):  # uneven steps along one line
-            source.set_touches({1: Fingertip(20.0 + 0.6 * d, 30.0 + 0.8 * d, 1.5)},
-                               time.monotonic())  # fmt: skip
-            _frames_for(source, 0.08)
-        source.set_touches({}, time.monotonic())
-        _frames_for(source, 0.3)
-    finally:
-        source.close()
+            _frames_for(source, clock, 0.08 - stall_s)
+            with _stalled(source, clock, stall_s):
+                source.set_touches({1: Fingertip(20.0 + 0.6 * d, 30.0 + 0.8 * d, 1.5)}, clock())
+        _frames_for(source, clock, 0.08)
+        source.set_touches({}, clock())
+        _frames_for(source, clock, 0.3)
     path = np.concatenate(rendered)
     path = path[path[:, 2] > 0.5]
     off_line = np.abs(0.8 * (path[:, 0] - 20.0) - 0.6 * (path[:, 1] - 30.0))
@@ -395,40 +458,29 @@ def test_performances_are_rendered_in_short_pieces():
         return frames
 
     source._model.render = spy
-    source.start()
-    try:
+    with _running(source):
         collect(source, 2000)
         assert len(source.events) >= 3  # the person performed
-    finally:
-        source.close()
     assert max(sizes) <= int(0.05 * FS)
 
 
-def test_a_sparse_press_rises_smoothly_between_its_samples():
+@_STALLS
+def test_a_sparse_press_rises_smoothly_between_its_samples(stall_s):
     """A busy page sends a mouse's rising press (push) as a few samples 100 ms apart: the
     fingertip's force must rise along the way, not in 20 ms steps."""
-    source = SimulatedSkinSource(seed=6, autonomous=False, lookahead_s=0.03)
-    rendered: list[np.ndarray] = []
-    render = source._model.render
-
-    def spy(contacts=(), n_frames=None, bursts=(), offset=0):
-        rendered.extend(track.force_n for track in contacts)
-        return render(contacts, n_frames, bursts, offset)
-
-    source._model.render = spy
-    source.start()
-    try:
-        _frames_for(source, 0.2)
-        source.set_touches({1: Fingertip(50.0, 70.0, 1.0)}, time.monotonic())
-        _frames_for(source, 0.3)
+    source, clock = _virtual_skin(6)
+    rendered = _spy_on_tracks(source, lambda track: track.force_n)
+    with _running(source):
+        _frames_for(source, clock, 0.2)
+        source.set_touches({1: Fingertip(50.0, 70.0, 1.0)}, clock())
+        _frames_for(source, clock, 0.3)
         for k in range(1, 5):  # 1 N -> 4 N in 4 steps, 100 ms apart, sent live
-            source.set_touches({1: Fingertip(50.0, 70.0, 1.0 + 0.75 * k)}, time.monotonic())
-            _frames_for(source, 0.1)
-        _frames_for(source, 0.3)
-        source.set_touches({}, time.monotonic())
-        _frames_for(source, 0.3)
-    finally:
-        source.close()
+            _frames_for(source, clock, 0.1 - stall_s)
+            with _stalled(source, clock, stall_s):
+                source.set_touches({1: Fingertip(50.0, 70.0, 1.0 + 0.75 * k)}, clock())
+        _frames_for(source, clock, 0.4)
+        source.set_touches({}, clock())
+        _frames_for(source, clock, 0.3)
     force = np.concatenate(rendered)
     first, last = np.flatnonzero(force > 1.02)[0], np.flatnonzero(force > 3.98)[0]
     rising = force[first - 1 : last + 1]
@@ -440,16 +492,18 @@ def test_a_sparse_press_rises_smoothly_between_its_samples():
 def test_a_reader_that_falls_behind_slows_the_simulated_world():
     """A starved reader gets at most MAX_READER_LAG_S of frames at once: the stream clock
     is held back instead (no seconds-old touches acted on in one burst)."""
-    source = SimulatedSkinSource(seed=4, autonomous=False, lookahead_s=0.03)
-    source.start()
-    try:
-        collect(source, 10)
-        time.sleep(1.0)  # the reader is busy elsewhere for a second
-        burst = [item for item in source.poll(0.0) if isinstance(item, Frame)]
-        assert 1 <= len(burst) <= MAX_READER_LAG_S * FS + 1
-        assert source.slowed_s > 0.5
-        frames = collect(source, 40)
+    source, clock = _virtual_skin(4)
+    with _running(source):
+        clock.now = 9.5 / FS  # mid-frame: 10 frames due
+        assert len(_due(source)) == 10
+        clock.now += 1.0  # the reader is busy elsewhere for a second
+        burst = _due(source)
+        assert len(burst) == MAX_READER_LAG_S * FS
+        assert source.slowed_s == pytest.approx(1.0 - MAX_READER_LAG_S, abs=1.0 / FS)
+        slowed, frames = source.slowed_s, []
+        for _ in range(40):  # the reader keeps up again: so does the stream, held back
+            clock.now += 1.0 / FS
+            frames += _due(source)
+        assert len(frames) == 40 and source.slowed_s == slowed
         seqs = [f.seq for f in burst + frames]
-        assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # nothing skipped
-    finally:
-        source.close()
+        assert seqs == list(range(10, 10 + len(seqs)))  # nothing skipped

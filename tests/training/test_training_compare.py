@@ -8,6 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from rich.console import Console
+from tiny_models import HPARAMS as TINY_TCN
+from tiny_models import TINY_SIM_SET
 
 from wovenskin.recognition.checkpoint_meta import read_meta
 from wovenskin.training import runs
@@ -21,24 +23,17 @@ from wovenskin.training.runs import COMPARE_FILE, ensure_dataset
 
 pytestmark = pytest.mark.slow  # trains models or builds data sets: `make test-fast` leaves it out
 
-TINY_SET = dict(
-    n_recordings=3,
-    windows_per_recording=40,
-    invalid_windows_per_recording=10,
-    seconds_per_recording=20.0,
-    workers=1,
-)
 TINY_HPARAMS = {
     "transformer": {"n_layers": 1, "ff_dim": 32, "d_model": 16, "n_heads": 2, "stem_channels": 8},
     "bilstm": {"hidden": 16, "n_layers": 1},
-    "tcn": {"dim": 16, "n_blocks": 2, "stem_channels": 8},
+    "tcn": TINY_TCN,
 }
 OPTIONS = TrainConfig(epochs=1, batch_size=32, threads=1, val_fraction=0.34)
 
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
-    return generate_sim_dataset(tmp_path_factory.mktemp("compare") / "ds", seed=5, **TINY_SET)
+    return generate_sim_dataset(tmp_path_factory.mktemp("compare") / "ds", seed=5, **TINY_SIM_SET)
 
 
 def test_ensure_dataset_builds_the_default_set_once(tmp_path, monkeypatch):
@@ -48,7 +43,7 @@ def test_ensure_dataset_builds_the_default_set_once(tmp_path, monkeypatch):
 
     def tiny_generate(path, workers, progress):
         builds.append(path)
-        return generate_sim_dataset(path, seed=1, progress=progress, **TINY_SET)
+        return generate_sim_dataset(path, seed=1, progress=progress, **TINY_SIM_SET)
 
     monkeypatch.setattr(runs, "generate_sim_dataset", tiny_generate)
     reports = []

@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rich.console import Console
+from tiny_models import HPARAMS as TINY_TCN
+from tiny_models import TINY_SIM_SET
 
 from wovenskin.recognition.checkpoint_meta import read_meta, write_meta
 from wovenskin.recognition.onnx_runtime import OnnxRecognizer
@@ -36,21 +38,13 @@ from wovenskin.training.report import (
     write_report,
 )
 
-TINY_SET = dict(
-    n_recordings=3,
-    windows_per_recording=40,
-    invalid_windows_per_recording=10,
-    seconds_per_recording=20.0,
-    workers=1,
-)
-TINY_TCN = {"dim": 16, "n_blocks": 2, "stem_channels": 8}
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
     root = tmp_path_factory.mktemp("report")
-    return generate_sim_dataset(root / "ds", seed=5, **TINY_SET)
+    return generate_sim_dataset(root / "ds", seed=5, **TINY_SIM_SET)
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +89,7 @@ def test_split_record_and_fingerprint(data, tmp_path):
     assert record["dataset"]["fingerprint"] == dataset_fingerprint(open_dataset(data.path))
     assert record["split"]["n_train"] + record["split"]["n_val"] == len(data)
     assert record["split"]["held_out"]["recording"] == 1
-    other = generate_sim_dataset(tmp_path / "other", seed=6, **TINY_SET)
+    other = generate_sim_dataset(tmp_path / "other", seed=6, **TINY_SIM_SET)
     assert dataset_fingerprint(other) != dataset_fingerprint(data)
 
 
@@ -129,7 +123,7 @@ def test_evaluation_counts_windows_seen_in_training(data, checkpoint):
 
 
 def test_another_data_set_is_not_leakage(checkpoint, tmp_path):
-    other = generate_sim_dataset(tmp_path / "other", seed=7, **TINY_SET)
+    other = generate_sim_dataset(tmp_path / "other", seed=7, **TINY_SIM_SET)
     report = evaluate_on_dataset(checkpoint, other, "all")
     assert report.seen_in_training == 0 and report.warnings == []
     assert report.metrics.n == len(other)

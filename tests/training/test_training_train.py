@@ -70,6 +70,12 @@ def moving_blobs(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return windows.astype(np.float32), labels.astype(np.int64)
 
 
+def _arguments(data, **settings) -> dict:
+    """The keywords of a training run on ``data`` (the fixture below), with ``settings``."""
+    run = dict(zip(("windows", "labels", "train_idx", "val_idx"), data, strict=True))
+    return run | {"class_names": CLASSES, "meta": DATA_META} | settings
+
+
 @pytest.fixture(scope="module")
 def data() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     windows, labels = moving_blobs(360, seed=0)
@@ -140,23 +146,21 @@ def test_classification_metrics_match_their_definitions(pairs: list[tuple[int, i
 
 
 def test_transformer_learns_moving_blobs_and_exports(tmp_path: Path, data) -> None:
-    windows, labels, train_idx, val_idx = data
+    windows, labels, _, val_idx = data
     events: list[TrainEvent] = []
     result = train_model(
         "transformer",
-        windows.astype(np.float16),
-        labels,
-        CLASSES,
-        train_idx,
-        val_idx,
-        tmp_path,
-        DATA_META,
-        epochs=10,
-        batch_size=16,
-        lr=2e-3,
-        seed=0,
-        patience=4,
+        out_dir=tmp_path,
         progress=events.append,
+        **_arguments(
+            data,
+            windows=windows.astype(np.float16),
+            epochs=10,
+            batch_size=16,
+            lr=2e-3,
+            seed=0,
+            patience=4,
+        ),
     )
     assert result.best_val_accuracy >= 0.95, [r.val_accuracy for r in result.history]
     assert result.stop_reason in ("completed", "early_stopping")
@@ -202,22 +206,19 @@ def test_transformer_learns_moving_blobs_and_exports(tmp_path: Path, data) -> No
 
 @pytest.mark.parametrize("name", ["bilstm", "tcn"])
 def test_baselines_train_end_to_end(tmp_path: Path, data, name: str) -> None:
-    windows, labels, train_idx, val_idx = data
+    windows = data[0]
     result = train_model(
         name,
-        windows,
-        labels,
-        CLASSES,
-        train_idx,
-        val_idx,
-        tmp_path,
-        DATA_META,
-        epochs=6,
-        batch_size=32,
-        lr=3e-3,
-        seed=1,
-        patience=6,
-        hparams={"hidden": 32, "n_layers": 1} if name == "bilstm" else {"dim": 32},
+        out_dir=tmp_path,
+        **_arguments(
+            data,
+            epochs=6,
+            batch_size=32,
+            lr=3e-3,
+            seed=1,
+            patience=6,
+            hparams={"hidden": 32, "n_layers": 1} if name == "bilstm" else {"dim": 32},
+        ),
     )
     assert result.epochs_run == 6 and result.stop_reason == "completed"
     assert result.history[-1].train_loss < result.history[0].train_loss
@@ -238,20 +239,8 @@ def _stop_after(epoch: int):
 
 
 def test_resume_gives_the_same_weights_as_an_uninterrupted_run(tmp_path: Path, data) -> None:
-    windows, labels, train_idx, val_idx = data
-    arguments = dict(
-        windows=windows,
-        labels=labels,
-        class_names=CLASSES,
-        train_idx=train_idx,
-        val_idx=val_idx,
-        meta=DATA_META,
-        epochs=4,
-        batch_size=32,
-        lr=2e-3,
-        seed=3,
-        patience=10,
-        hparams=SMALL_TRANSFORMER,
+    arguments = _arguments(
+        data, epochs=4, batch_size=32, lr=2e-3, seed=3, patience=10, hparams=SMALL_TRANSFORMER
     )
     whole = train_model("transformer", out_dir=tmp_path / "whole", **arguments)
     with pytest.raises(Interrupted):
@@ -284,15 +273,9 @@ def test_resume_gives_the_same_weights_as_an_uninterrupted_run(tmp_path: Path, d
 
 
 def test_time_budget_stops_after_one_epoch_and_can_be_resumed(tmp_path: Path, data) -> None:
-    windows, labels, train_idx, val_idx = data
-    arguments = dict(
-        windows=windows,
-        labels=labels,
-        class_names=CLASSES,
-        train_idx=train_idx,
-        val_idx=val_idx,
+    arguments = _arguments(
+        data,
         out_dir=tmp_path,
-        meta=DATA_META,
         epochs=3,
         batch_size=64,
         lr=2e-3,
@@ -311,7 +294,6 @@ def test_time_budget_stops_after_one_epoch_and_can_be_resumed(tmp_path: Path, da
 def test_early_stopping_keeps_the_best_epoch(
     tmp_path: Path, data, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    windows, labels, train_idx, val_idx = data
     accuracies = iter([0.5, 0.7, 0.6, 0.7, 0.65, 0.9])
     real_validate = train_module._validate
     best_weights = {}
@@ -326,19 +308,10 @@ def test_early_stopping_keeps_the_best_epoch(
     monkeypatch.setattr(train_module, "_validate", scripted_validate)
     result = train_model(
         "tcn",
-        windows,
-        labels,
-        CLASSES,
-        train_idx,
-        val_idx,
-        tmp_path,
-        DATA_META,
-        epochs=6,
-        batch_size=64,
-        lr=1e-3,
-        seed=0,
-        patience=2,
-        hparams={"dim": 16},
+        out_dir=tmp_path,
+        **_arguments(
+            data, epochs=6, batch_size=64, lr=1e-3, seed=0, patience=2, hparams={"dim": 16}
+        ),
     )
     # epoch 4 ties epoch 2 without a lower loss: no improvement, so patience ends at epoch 4
     assert result.stop_reason == "early_stopping"
@@ -349,24 +322,22 @@ def test_early_stopping_keeps_the_best_epoch(
 
 
 def test_same_seed_same_model_and_global_settings_restored(tmp_path: Path, data) -> None:
-    windows, labels, train_idx, val_idx = data
+    train_idx = data[2]
     threads = torch.get_num_threads()
     deterministic = torch.are_deterministic_algorithms_enabled()
     runs = []
     for name in ("a", "b"):
         train_model(
             "bilstm",
-            windows,
-            labels,
-            CLASSES,
-            train_idx[:96],
-            val_idx,
-            tmp_path / name,
-            DATA_META,
-            epochs=1,
-            batch_size=32,
-            seed=5,
-            hparams={"hidden": 16, "n_layers": 1},
+            out_dir=tmp_path / name,
+            **_arguments(
+                data,
+                train_idx=train_idx[:96],
+                epochs=1,
+                batch_size=32,
+                seed=5,
+                hparams={"hidden": 16, "n_layers": 1},
+            ),
         )
         runs.append(torch.load(tmp_path / name / WEIGHTS_FILE, weights_only=True))
     assert all(torch.equal(v, runs[1][k]) for k, v in runs[0].items())
@@ -375,7 +346,7 @@ def test_same_seed_same_model_and_global_settings_restored(tmp_path: Path, data)
 
 
 def test_memory_mapped_float16_windows(tmp_path: Path, data) -> None:
-    windows, labels, train_idx, val_idx = data
+    windows, labels, _, _ = data
     mapped = np.lib.format.open_memmap(
         tmp_path / "windows.npy", mode="w+", dtype=np.float16, shape=windows.shape
     )
@@ -384,16 +355,8 @@ def test_memory_mapped_float16_windows(tmp_path: Path, data) -> None:
     readonly = np.load(tmp_path / "windows.npy", mmap_mode="r")
     result = train_model(
         "tcn",
-        readonly,
-        labels,
-        CLASSES,
-        train_idx,
-        val_idx,
-        tmp_path / "ckpt",
-        DATA_META,
-        epochs=1,
-        batch_size=64,
-        hparams={"dim": 16},
+        out_dir=tmp_path / "ckpt",
+        **_arguments(data, windows=readonly, epochs=1, batch_size=64, hparams={"dim": 16}),
     )
     assert result.epochs_run == 1
     model, _ = load_checkpoint(tmp_path / "ckpt")
@@ -408,22 +371,11 @@ def test_input_scale_is_the_median_window_peak(data) -> None:
 
 
 def test_bad_training_input_is_refused(tmp_path: Path, data) -> None:
-    windows, labels, train_idx, val_idx = data
+    windows, labels, train_idx, _ = data
 
     def run(**changes):
-        arguments = dict(
-            model_name="tcn",
-            windows=windows,
-            labels=labels,
-            class_names=CLASSES,
-            train_idx=train_idx,
-            val_idx=val_idx,
-            out_dir=tmp_path,
-            meta=DATA_META,
-            epochs=1,
-            hparams={"dim": 16},
-        )
-        return train_model(**(arguments | changes))
+        arguments = _arguments(data, out_dir=tmp_path, epochs=1, hparams={"dim": 16})
+        return train_model("tcn", **(arguments | changes))
 
     with pytest.raises(ValueError, match="both train_idx and val_idx"):
         run(val_idx=np.arange(260, 300))

@@ -38,8 +38,10 @@ class _Clock:
         return self.now
 
 
-def joint_6_clearance(speed_deg: float, tick: float = 0.005) -> float:
-    """Smallest distance (deg) between joint 6 and its limit when driven at ``speed_deg``."""
+def joint_6_case(speed_deg: float) -> tuple[np.ndarray, SafetyLimits, np.ndarray]:
+    """The joint-6 probe at ``speed_deg`` deg/s: the start posture (joint 6 at 230 deg,
+    toward its upper limit), limits with a box the arm never reaches and an angular cap of
+    at least ``speed_deg``, and the twist turning the tool about its own axis."""
     q0 = tm5_900.INITIAL_Q.copy()
     q0[5] = math.radians(230.0)
     limits = SafetyLimits(
@@ -47,11 +49,17 @@ def joint_6_clearance(speed_deg: float, tick: float = 0.005) -> float:
         workspace_upper=[2.0, 2.0, 2.0],
         max_angular_speed=math.radians(max(60.0, speed_deg)),
     )
+    twist = np.r_[0.0, 0.0, 0.0, tm5_900.forward_kinematics(q0)[:3, 2] * math.radians(speed_deg)]
+    return q0, limits, twist
+
+
+def joint_6_clearance(speed_deg: float, tick: float = 0.005) -> float:
+    """Smallest distance (deg) between joint 6 and its limit when driven at ``speed_deg``."""
+    q0, limits, twist = joint_6_case(speed_deg)
     clock = _Clock()
     robot = SimRobot(q0=q0)
     safe = SafetyLayer(robot, limits, clock=clock)
     safe.connect()
-    twist = np.r_[0.0, 0.0, 0.0, tm5_900.forward_kinematics(q0)[:3, 2] * math.radians(speed_deg)]
     upper = tm5_900.JOINT_LIMITS.upper[5]
     closest = math.inf
     for i in range(round(2.5 / tick)):

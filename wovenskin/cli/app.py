@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import functools
 import sys
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import typer
 from rich.console import Console
@@ -17,6 +19,9 @@ from rich.markup import escape
 from wovenskin.errors import ConfigError, DeviceError, WovenskinError
 from wovenskin.outputs import CLI_SWITCH, OutputExistsError
 from wovenskin.robots.base import RobotError
+
+if TYPE_CHECKING:
+    from rich.progress import Progress, TaskID
 
 app = typer.Typer(
     help="Gesture control of a robot arm with a woven capacitive tactile skin.",
@@ -150,6 +155,42 @@ def show_bench(result, json_out: bool) -> None:
         print(json.dumps(result.to_dict()))
     else:
         console.print(result.table())
+
+
+def counting_bar(
+    ui: Console, description: str, total: int | None = None
+) -> tuple[Progress, TaskID]:
+    """A Rich bar on ``ui`` counting done of ``total`` (description, bar, done/total,
+    elapsed and remaining time) and its one task: ``(bar, task)``."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    bar = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=ui,
+    )
+    return bar, bar.add_task(description, total=total)
+
+
+def dataset_progress(ui: Console, description: str) -> tuple[Progress, Callable[[int, int], None]]:
+    """A :func:`counting_bar` over recordings and the ``progress(done, total)`` that drives
+    it (what the data set builders report): ``(bar, progress)``."""
+    bar, task = counting_bar(ui, description)
+
+    def update(done: int, total: int) -> None:
+        bar.update(task, completed=done, total=total)
+
+    return bar, update
 
 
 def warn(message: str) -> None:

@@ -16,6 +16,7 @@ from wovenskin.cli.app import (
     THREADS,
     bench_app,
     console,
+    counting_bar,
     err_console,
     given,
     pipeline_settings,
@@ -113,15 +114,6 @@ def bench_recognition(
     json_out: bool = JSON_OUT,
 ) -> None:
     """The live pipeline on unseen simulated streams by condition: F1, false alarms, latency."""
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
     from wovenskin.bench.conditions import DEFAULT_SECONDS, condition_names
     from wovenskin.bench.recognition import (
         DEFAULT_BASE_SEED,
@@ -137,15 +129,7 @@ def bench_recognition(
     names = condition_names(conditions)
     recognizer = load_recognizer(model, threads=threads)
     settings = pipeline_settings(recognizer, min_probability=min_probability)
-    bar = Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=err_console,
-    )
-    task = bar.add_task("bench recognition", total=len(names) * streams_per_condition)
+    bar, task = counting_bar(err_console, "bench recognition", len(names) * streams_per_condition)
 
     def update(done: int, total: int, what: str) -> None:
         bar.update(task, completed=done, total=total, description=f"bench recognition: {what}")

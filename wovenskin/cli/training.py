@@ -62,8 +62,8 @@ def _json_object(text: str, option: str) -> dict:
 
 def _open_or_build_dataset(data: Path | None, ui: Console):
     """The data set at ``data``, or the default one (generated with a progress bar if missing)."""
+    from wovenskin.cli.app import dataset_progress
     from wovenskin.training import runs
-    from wovenskin.training.progress import dataset_progress
     from wovenskin.training.report import DatasetSummary
 
     if data is not None or runs.default_dataset_exists():
@@ -115,9 +115,9 @@ def dataset(
     overwrite: bool = typer.Option(False, help="Replace an existing data set."),
 ) -> None:
     """Build a window data set from simulation or labelled streams."""
+    from wovenskin.cli.app import dataset_progress
     from wovenskin.skin.layout import DEFAULT_COLS, DEFAULT_ROWS, SkinLayout
     from wovenskin.training.datasets import build_dataset_from_streams, generate_sim_dataset
-    from wovenskin.training.progress import dataset_progress
     from wovenskin.training.report import DatasetSummary
     from wovenskin.training.window_settings import WindowSettings
 

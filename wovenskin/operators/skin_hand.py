@@ -126,17 +126,10 @@ class OperatorSkin(DevicelessSource):
 
     # -- SkinSource
 
-    @property
-    def info(self) -> SkinInfo:
-        return self._info
-
     def start(self) -> None:
         if self._started or self._closed:
             return
-        self._started = True
-        self._stats.connected = True
-        message = "simulated skin under a simulated operator's hand"
-        self._queue.append(SourceEvent("connected", message, time.monotonic(), self._info))
+        self._open("simulated skin under a simulated operator's hand", time.monotonic())
 
     def poll(self, timeout: float = 0.05) -> list[Frame | SourceEvent]:
         if not self._started or self._closed:

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from wovenskin.errors import DataError
-from wovenskin.io import atomic_write_bytes
+from wovenskin.io import atomic_write_bytes, plain_dict
 from wovenskin.signal.config import FLAG_ONLY_SETTINGS
 
 META_FILE = "meta.json"
@@ -44,14 +44,7 @@ class ModelInputError(DataError):
 
 def _conditioning_dict(conditioning: Any) -> dict[str, Any]:
     """A conditioning config as a plain dict (accepts a mapping or an object with ``to_dict``)."""
-    if conditioning is None:
-        return {}
-    if isinstance(conditioning, Mapping):
-        return dict(conditioning)
-    to_dict = getattr(conditioning, "to_dict", None)
-    if callable(to_dict):
-        return dict(to_dict())
-    raise TypeError(f"conditioning must be a mapping or have to_dict(), got {type(conditioning)}")
+    return {} if conditioning is None else plain_dict(conditioning, "conditioning")
 
 
 def _same_value(a: Any, b: Any) -> bool:

@@ -27,7 +27,7 @@ from wovenskin.recording.files import read_as_recording
 from wovenskin.recording.records import LABEL_KIND_TRIAL
 from wovenskin.recording.untrusted import FormatError
 from wovenskin.settings import from_dict
-from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
+from wovenskin.skin.frames import Frame, SourceEvent, SourceStats
 from wovenskin.skin.source import DevicelessSource
 
 FAST_BATCH = 256
@@ -91,10 +91,6 @@ class ReplaySource(DevicelessSource):
     # -- SkinSource
 
     @property
-    def info(self) -> SkinInfo:
-        return self._info
-
-    @property
     def events(self) -> list[tuple[str, float, float]]:
         """The file's labelled events ``(label, start_s, end_s)`` in file time."""
         return list(self._events)
@@ -107,13 +103,11 @@ class ReplaySource(DevicelessSource):
     def start(self) -> None:
         if self._started or self._closed:
             return
-        self._started = True
         self._wall_start = time.monotonic()
-        self._stats.connected = True
         message = f"replaying {self.path}: {len(self._t)} frames, {self._period_s:.1f} s"
         if self._warnings:
             message += f" ({len(self._warnings)} warning(s): {self._warnings[0]})"
-        self._queue.append(SourceEvent("connected", message, self._wall_start, self._info))
+        self._open(message, self._wall_start)
 
     def poll(self, timeout: float = 0.05) -> list[Frame | SourceEvent]:
         now = time.monotonic()

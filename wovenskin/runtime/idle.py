@@ -97,18 +97,11 @@ class IdleSkinSource(DevicelessSource):
 
     # -- SkinSource
 
-    @property
-    def info(self) -> SkinInfo:
-        return self._info
-
     def start(self) -> None:
         if self._started or self._closed:
             return
-        self._started = True
         self._wall_start = self._clock()
-        self._stats.connected = True
-        message = "no skin: idle frames keep the session's clock"
-        self._queue.append(SourceEvent("connected", message, self._wall_start, self._info))
+        self._open("no skin: idle frames keep the session's clock", self._wall_start)
 
     def poll(self, timeout: float = 0.05) -> list[Frame | SourceEvent]:
         if not self._started or self._closed:

@@ -15,6 +15,11 @@ gestures, landing and lifting over a short force ramp and sliding smoothly betwe
 positions given.  While such fingertips touch, the person's next performance waits.  The
 ``lookahead`` option (seconds of frames rendered ahead of the wall clock) bounds how late
 an outside touch can show up; the dashboard uses a few tens of milliseconds.
+
+The stream is paced by a ``clock`` (default :func:`time.monotonic`): everything that reads
+the time (which frames are due, how far ahead to render, when an outside touch arrived, the
+frames' ``t_host``) reads it, so a test can drive the source with a clock it advances
+itself.  Only :meth:`~SimulatedSkinSource.poll`'s ``timeout`` is real waiting.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -82,15 +87,18 @@ class SimulatedSkinSource:
         max_batch: int = 200,
         autonomous: bool = True,
         lookahead_s: float = LOOKAHEAD_S,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """``max_batch``: most frames one :meth:`poll` returns when ``speed=0``;
         ``autonomous=False``: the person rests and acts only on :meth:`perform` requests;
-        ``lookahead_s``: seconds of frames rendered ahead of the wall clock."""
+        ``lookahead_s``: seconds of frames rendered ahead of the wall clock; ``clock``:
+        the wall clock (seconds, never going back) that paces the stream."""
         if not np.isfinite(speed) or speed < 0:
             raise ConfigError(f"sim speed must be >= 0 (0 = as fast as polled), got {speed}")
         if not np.isfinite(lookahead_s) or not 0.005 <= lookahead_s <= 5.0:
             raise ConfigError(f"sim lookahead must be 0.005-5 s, got {lookahead_s}")
         self.lookahead_s = float(lookahead_s)
+        self._clock = clock
         self.seed = int(seed) if seed is not None else int(np.random.SeedSequence().entropy % 2**31)
         self.speed = float(speed)
         self.autonomous = bool(autonomous)
@@ -157,11 +165,11 @@ class SimulatedSkinSource:
                 raise RuntimeError("the simulated skin was closed; open a new source")
             if self._thread is not None:
                 return
-            self._clock_origin = time.monotonic()
+            self._clock_origin = self._clock()
             self._stop.clear()
             self._stats.connected = True
             self._notices.append(
-                SourceEvent("connected", "simulated skin started", time.monotonic(), self._info)
+                SourceEvent("connected", "simulated skin started", self._clock(), self._info)
             )
             self._thread = threading.Thread(target=self._produce, name="sim-skin", daemon=True)
             self._thread.start()
@@ -175,7 +183,7 @@ class SimulatedSkinSource:
             while True:
                 out.extend(self._notices)
                 self._notices.clear()
-                now = time.monotonic()
+                now = self._clock()
                 due = self._hold_back(self._due_frames(now))
                 while self._buffer and self._delivered < due:
                     values = self._buffer.popleft()
@@ -186,9 +194,10 @@ class SimulatedSkinSource:
                 if out:
                     self._cond.notify_all()  # the producer may top up the buffer
                     return out
-                if now >= deadline or self._stop.is_set():
+                left = deadline - time.monotonic()  # real waiting, whatever paces the stream
+                if left <= 0 or self._stop.is_set():
                     return out
-                self._cond.wait(min(deadline - now, self._wait_hint(now)))
+                self._cond.wait(min(left, self._wait_hint(now)))
 
     def stats(self) -> SourceStats:
         with self._cond:
@@ -199,10 +208,10 @@ class SimulatedSkinSource:
         command = command.strip().lower()
         with self._cond:
             if command == "stop" and not self._paused:
-                self._paused, self._paused_at = True, time.monotonic()
+                self._paused, self._paused_at = True, self._clock()
             elif command == "start" and self._paused:
                 self._paused = False
-                self._clock_origin += time.monotonic() - self._paused_at
+                self._clock_origin += self._clock() - self._paused_at
             elif command not in ("start", "stop", "recalibrate"):
                 raise ValueError(
                     f"unknown skin command {command!r}: use start, stop or recalibrate"
@@ -271,7 +280,7 @@ class SimulatedSkinSource:
         fingertips or a non-finite ``client_t``."""
         capped = checked_touches(touches, client_t)
         with self._cond:
-            self._touches.add(capped, client_t, self._rendered / self._fs, time.monotonic())
+            self._touches.add(capped, client_t, self._rendered / self._fs, self._clock())
             self._cond.notify_all()
 
     @property
@@ -330,7 +339,7 @@ class SimulatedSkinSource:
         if self.speed == 0:
             return self._delivered + int(_UNPACED_BUFFER_S * self._fs)
         ahead = max(1, int(self.lookahead_s * self.speed * self._fs))
-        return self._due_frames(time.monotonic()) + ahead
+        return self._due_frames(self._clock()) + ahead
 
     # -- producer thread --------------------------------------------------------------------------
     def _produce(self) -> None:
@@ -350,7 +359,7 @@ class SimulatedSkinSource:
             with self._cond:
                 message = f"simulator stopped: {type(exc).__name__}: {exc}"
                 self._stats.last_error = message
-                self._notices.append(SourceEvent("error", message, time.monotonic()))
+                self._notices.append(SourceEvent("error", message, self._clock()))
                 self._cond.notify_all()
 
     def _render_next(self, request: str | None) -> np.ndarray:

@@ -243,8 +243,10 @@ class OutsideTouches:
     ) -> float:
         """The stream time of a sample that moves fingertips which already stand at the
         previous sample (the sender is sparser than the play-out delay): the slide starts
-        at ``head`` and lasts the samples' spacing (see
-        :meth:`~wovenskin.sim.live.SimulatedSkinSource.set_touches`)."""
+        at ``head`` and lasts the samples' spacing, or longer if the sample is due later (see
+        :meth:`~wovenskin.sim.live.SimulatedSkinSource.set_touches`).  It never starts when
+        the fingertips reached the previous sample: the frames since show them standing
+        there, so a slide timed from then would jump to where it had got by ``head``."""
         previous = self._client_t
         if previous is None or self.timeline or not self.fingers:
             return t  # nothing waits: the sample is in time (or lands new fingertips)
@@ -255,10 +257,10 @@ class OutsideTouches:
         # says nothing about when the hand started again: it moves over a short segment.
         longest = _RESUME_SEGMENT_S if self._still else MAX_TOUCH_SEGMENT_S
         spacing = min(max(float(client_t) - previous, 0.0), longest)
-        if t >= head + spacing:
-            return t
         for finger in self.fingers.values():
             finger.anchor_t = head  # it stood at its target until now; slides from here
+        if t >= head + spacing:
+            return t
         assert self._offset is not None
         self._offset += head + spacing - t
         return head + spacing

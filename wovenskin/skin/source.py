@@ -56,12 +56,29 @@ def held_back(pending: int, frames_per_s: float) -> tuple[int, float]:
 
 
 class DevicelessSource:
-    """What every source without a device shares (a replayed file, the idle clock): the
-    stats snapshot, device commands accepted and ignored, and closing.  A subclass sets
-    ``self._stats`` (a :class:`SourceStats`) and ``self._closed``."""
+    """What every source without a device shares (a replayed file, the idle clock, a
+    simulated operator's skin): its info, starting (once, queueing the "connected" event),
+    the stats snapshot, device commands accepted and ignored, and closing.  A subclass sets
+    ``self._info`` (a :class:`SkinInfo`), ``self._stats`` (a :class:`SourceStats`),
+    ``self._queue`` (an empty list), ``self._started`` and ``self._closed`` (False), and
+    its ``start`` calls :meth:`_open`."""
 
+    _info: SkinInfo
     _stats: SourceStats
+    _queue: list[Frame | SourceEvent]
+    _started: bool
     _closed: bool
+
+    @property
+    def info(self) -> SkinInfo:
+        return self._info
+
+    def _open(self, message: str, t_host: float) -> None:
+        """Mark the source started and connected and queue the "connected" event
+        (``message``, at host time ``t_host``)."""
+        self._started = True
+        self._stats.connected = True
+        self._queue.append(SourceEvent("connected", message, t_host, self._info))
 
     def stats(self) -> SourceStats:
         return self._stats.copy()

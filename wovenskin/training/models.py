@@ -16,6 +16,8 @@ list work; a model only accepts the grid and window it was built for.
   layers (a 3D-CNN needs depth or large kernels to see as far, which the paper names as its
   weakness), and every op is a plain convolution that ONNX Runtime runs fast on one thread.
 
+The transformer and the TCN embed frames the same way, through :class:`StemClassifier`.
+
 Input normalisation, shared by all models: windows are divided by ``input_scale``, a
 buffer (saved in the state dict and baked into the ONNX graph) that training sets to the
 typical window peak of its data (``set_input_scale``). With ``window_norm`` (default) each
@@ -167,7 +169,37 @@ def sinusoidal_encoding(length: int, dim: int) -> torch.Tensor:
     return encoding
 
 
-class ConvTransformer(WindowClassifier):
+class StemClassifier(WindowClassifier):
+    """A :class:`WindowClassifier` whose frames are embedded one by one by a
+    :class:`FrameStem`, with the window level (``level_input``) added to every embedding.
+
+    A subclass calls :meth:`_add_stem` in its constructor and :meth:`_frame_embeddings`
+    first in ``forward``.
+    """
+
+    stem: FrameStem
+    level: nn.Linear | None
+
+    def _add_stem(self, channels: int, embed_dim: int, motion_channel: bool) -> None:
+        """Create ``stem`` and, with ``level_input``, ``level`` (level -> embedding)."""
+        self.stem = FrameStem(self.rows, self.cols, channels, embed_dim, motion_channel)
+        self.level = nn.Linear(1, embed_dim) if self.level_input else None
+
+    def _frame_embeddings(
+        self, windows: torch.Tensor, positions: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """Embeddings ``(B, W, D)`` of the normalised frames of ``windows``, plus
+        ``positions`` ``(W, D)`` if given, then the level's embedding if used."""
+        x, level = self._normalized(windows)
+        frames = self.stem(x)
+        if positions is not None:
+            frames = frames + positions
+        if self.level is not None:
+            frames = frames + self.level(level).unsqueeze(1)
+        return frames
+
+
+class ConvTransformer(StemClassifier):
     """Convolutional stem per frame, positional encoding, transformer encoder, MLP head.
 
     Dropout is off by default: the training set is large and seen only about three times,
@@ -194,8 +226,7 @@ class ConvTransformer(WindowClassifier):
         super().__init__(rows, cols, window, n_classes, window_norm, level_input)
         if d_model % n_heads or d_model % 2:
             raise ValueError(f"d_model {d_model} must be even and divisible by n_heads {n_heads}")
-        self.stem = FrameStem(rows, cols, stem_channels, d_model, motion_channel)
-        self.level = nn.Linear(1, d_model) if level_input else None
+        self._add_stem(stem_channels, d_model, motion_channel)
         self.register_buffer("positions", sinusoidal_encoding(window, d_model))
         layer = nn.TransformerEncoderLayer(
             d_model,
@@ -217,11 +248,7 @@ class ConvTransformer(WindowClassifier):
         )
 
     def forward(self, windows: torch.Tensor) -> torch.Tensor:
-        x, level = self._normalized(windows)
-        tokens = self.stem(x) + self.positions
-        if self.level is not None:
-            tokens = tokens + self.level(level).unsqueeze(1)
-        encoded = self.encoder(tokens)
+        encoded = self.encoder(self._frame_embeddings(windows, self.positions))
         return self.head(encoded.mean(dim=1))
 
 
@@ -280,7 +307,7 @@ class _CausalBlock(nn.Module):
         return self.act(x + self.dropout(y))
 
 
-class TemporalConvNet(WindowClassifier):
+class TemporalConvNet(StemClassifier):
     """Per-frame stem, dilated causal residual blocks over time, last step -> MLP head."""
 
     def __init__(
@@ -299,8 +326,7 @@ class TemporalConvNet(WindowClassifier):
         level_input: bool = False,
     ) -> None:
         super().__init__(rows, cols, window, n_classes, window_norm, level_input)
-        self.stem = FrameStem(rows, cols, stem_channels, dim, motion_channel)
-        self.level = nn.Linear(1, dim) if level_input else None
+        self._add_stem(stem_channels, dim, motion_channel)
         self.blocks = nn.Sequential(
             *(_CausalBlock(dim, kernel, 2**i, dropout) for i in range(n_blocks))
         )
@@ -309,11 +335,7 @@ class TemporalConvNet(WindowClassifier):
         )
 
     def forward(self, windows: torch.Tensor) -> torch.Tensor:
-        x, level = self._normalized(windows)
-        frames = self.stem(x)
-        if self.level is not None:
-            frames = frames + self.level(level).unsqueeze(1)
-        encoded = self.blocks(frames.transpose(1, 2))
+        encoded = self.blocks(self._frame_embeddings(windows).transpose(1, 2))
         pooled = torch.cat([encoded[:, :, -1], encoded.mean(dim=2)], dim=1)
         return self.head(pooled)
 

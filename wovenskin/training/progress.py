@@ -1,4 +1,4 @@
-"""Training and data-set building shown in the terminal (Rich): bars and one line per epoch."""
+"""Training shown in the terminal (Rich): a bar per epoch and one line per finished epoch."""
 
 from __future__ import annotations
 
@@ -14,7 +14,6 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from wovenskin.training.datasets import ProgressCallback
 from wovenskin.training.history import TrainEvent
 
 
@@ -83,21 +82,3 @@ class TrainProgressDisplay:
             f"F1 {r.val_macro_f1:.4f} val loss {r.val_loss:.4f} lr {r.lr:.1e} "
             f"{r.seconds:4.0f} s" + (" [green]best[/]" if improved else "")
         )
-
-
-def dataset_progress(console: Console, description: str) -> tuple[Progress, ProgressCallback]:
-    """A Rich progress bar over recordings, and the ``progress(done, total)`` that drives it."""
-    bar = Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=console,
-    )
-    task = bar.add_task(description, total=None)
-
-    def update(done: int, total: int) -> None:
-        bar.update(task, completed=done, total=total)
-
-    return bar, update

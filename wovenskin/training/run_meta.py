@@ -6,17 +6,12 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from wovenskin.errors import DataError
-from wovenskin.io import to_jsonable
+from wovenskin.io import plain_dict, to_jsonable
 from wovenskin.recognition.checkpoint_meta import CheckpointMeta
 
 
 def _as_mapping(meta: Mapping[str, Any] | Any) -> dict[str, Any]:
-    if isinstance(meta, Mapping):
-        return dict(meta)
-    to_dict = getattr(meta, "to_dict", None)
-    if callable(to_dict):
-        return dict(to_dict())
-    raise TypeError(f"data set meta must be a mapping or have to_dict(), got {type(meta)}")
+    return plain_dict(meta, "data set meta")
 
 
 def _first(mapping: Mapping[str, Any], *keys: str) -> Any:

@@ -238,6 +238,14 @@ class URRobot(Robot):
             raise RobotError(f"lost the RTDE control connection to {self.host}")
         return self._control, self._receive
 
+    def _require_unfaulted(self) -> Any:
+        """The RTDE control interface of a connected arm in no stop; else a RobotError."""
+        control, _ = self._require()
+        fault = self._fault()
+        if fault is not None:
+            raise RobotError(f"UR arm is in {fault}")
+        return control
+
     def _fault(self) -> str | None:
         receive = self._receive
         if receive.isEmergencyStopped():
@@ -281,10 +289,7 @@ class URRobot(Robot):
 
     def send_twist(self, twist: np.ndarray) -> None:
         command = command_twist(twist)
-        control, _ = self._require()
-        fault = self._fault()
-        if fault is not None:
-            raise RobotError(f"UR arm is in {fault}")
+        control = self._require_unfaulted()
         if self._moving_async:
             control.stopL(self.stop_decel)
             self._moving_async = False
@@ -294,10 +299,7 @@ class URRobot(Robot):
         self._check(ok, "speedL")
 
     def _before_move(self) -> Any:
-        control, _ = self._require()
-        fault = self._fault()
-        if fault is not None:
-            raise RobotError(f"UR arm is in {fault}")
+        control = self._require_unfaulted()
         if self._speeding:
             control.speedStop(self.stop_decel)
             self._speeding = False

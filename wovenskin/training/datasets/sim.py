@@ -14,29 +14,25 @@ from pathlib import Path
 
 import numpy as np
 
-from wovenskin.gestures import CLASS_NAMES
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.sim.person import Person
 from wovenskin.sim.skin_physics import SkinPhysics
 from wovenskin.sim.stream import simulate_stream
 from wovenskin.skin.layout import SkinLayout
-from wovenskin.training.datasets.jobs import run_jobs
 from wovenskin.training.datasets.store import DatasetError, ProgressCallback, WindowDataset
 from wovenskin.training.datasets.streams import (
     WindowingJob,
     sim_person_name,
     sim_skin_name,
     window_stream,
+    write_recordings,
 )
 from wovenskin.training.datasets.writer import (
     DTYPE,
     INVALID_WINDOWS_PER_RECORDING,
     WINDOWS_PER_RECORDING,
     WORKERS,
-    DatasetWriter,
-    RecordingCollector,
     RecordingWindows,
-    base_meta,
     check_counts,
     check_target,
 )
@@ -122,23 +118,12 @@ def generate_sim_dataset(
     windowing = WindowingJob.of(
         conditioning, settings, windows_per_recording, invalid_windows_per_recording, dtype
     )
-    dtype = windowing.dtype
     jobs = [
         _SimJob(i, int(seed), float(seconds_per_recording), layout.to_dict(),
                 float(invalid_fraction), windowing)
         for i in range(n_recordings)
     ]  # fmt: skip
-    meta = base_meta(
-        "sim",
-        CLASS_NAMES,
-        layout.rows,
-        layout.cols,
-        conditioning.sample_rate_hz,
-        settings.to_dict(),
-        seed,
-    )
-    meta["conditioning"] = conditioning.to_dict()
-    meta["generation"] = {
+    generation = {
         "builder": "generate_sim_dataset",
         "n_recordings": int(n_recordings),
         "windows_per_recording": int(windows_per_recording),
@@ -148,16 +133,7 @@ def generate_sim_dataset(
         "layout": layout.to_dict(),
         "recording_seed": "numpy SeedSequence(seed, spawn_key=(recording index,))",
     }
-    per_recording = int(windows_per_recording + invalid_windows_per_recording)
-    writer = DatasetWriter(out, n_recordings * per_recording, dtype)
-    try:
-        writer.allocate((settings.window_frames, layout.rows, layout.cols))
-        collector = RecordingCollector(writer, n_recordings, per_recording)
-        run_jobs(
-            jobs, _simulate_recording, workers, collector, progress,
-            lambda job: f"simulated recording {job.index}",
-        )  # fmt: skip
-        return collector.finish(meta, overwrite)
-    except BaseException:
-        writer.abort()
-        raise
+    return write_recordings(
+        out, "sim", windowing, seed, generation, jobs, _simulate_recording,
+        lambda job: f"simulated recording {job.index}", workers, progress, overwrite,
+    )  # fmt: skip

@@ -3,7 +3,8 @@
 :func:`build_dataset_from_streams` windows labelled-stream ``.npz`` files or native
 ``.wsrec`` recordings; :func:`window_stream` (conditioning one stream and cutting its
 windows, :mod:`~wovenskin.training.windows` or :mod:`~wovenskin.training.stream_windows`
-by the recipe) is shared with the simulated builder.  File ``i`` draws its windows from
+by the recipe) and :func:`write_recordings` (one worker per recording into a new data
+set) are shared with the simulated builder.  File ``i`` draws its windows from
 ``SeedSequence(seed, spawn_key=(i,))``.
 """
 
@@ -12,9 +13,10 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -325,36 +327,62 @@ def build_dataset_from_streams(
     windowing = WindowingJob.of(
         conditioning, settings, windows_per_recording, invalid_windows_per_recording, dtype
     )
-    dtype = windowing.dtype
     jobs = [
         _StreamJob(i, p, int(seed), persons[i] if persons else None,
                    skins[i] if skins else None, windowing)
         for i, p in enumerate(paths)
     ]  # fmt: skip
-    per_recording = int(windows_per_recording + invalid_windows_per_recording)
-    writer = DatasetWriter(out, len(jobs) * per_recording, dtype)
+    generation = {
+        "builder": "build_dataset_from_streams",
+        "paths": paths,
+        "windows_per_recording": int(windows_per_recording),
+        "invalid_windows_per_recording": int(invalid_windows_per_recording),
+        "recording_seed": "numpy SeedSequence(seed, spawn_key=(file index,))",
+    }
+    return write_recordings(
+        out, "streams", windowing, seed, generation, jobs, _window_stream_file,
+        lambda job: job.path, workers, progress, overwrite,
+    )  # fmt: skip
+
+
+def write_recordings(
+    out: Path,
+    kind: str,
+    windowing: WindowingJob,
+    seed,
+    generation: dict,
+    jobs: Sequence,
+    worker: Callable[[Any], RecordingWindows],
+    describe: Callable[[Any], str],
+    workers: int,
+    progress: ProgressCallback | None,
+    overwrite: bool,
+) -> WindowDataset:
+    """Run ``worker`` on every job (one recording each) into a new data set at ``out``.
+
+    Each recording's windows land at its fixed offset; the data set's meta is ``kind``'s
+    (grid read from the windows, rate, window settings and conditioning from
+    ``windowing``, ``seed``) with ``generation`` describing the builder.  On any failure
+    the partial directory is removed.
+    """
+    per_recording = windowing.n_gesture + windowing.n_invalid
+    writer = DatasetWriter(out, len(jobs) * per_recording, windowing.dtype)
     try:
         collector = RecordingCollector(writer, len(jobs), per_recording)
-        run_jobs(jobs, _window_stream_file, workers, collector, progress, lambda job: job.path)
+        run_jobs(jobs, worker, workers, collector, progress, describe)
         assert writer.windows is not None
         _, rows, cols = writer.windows.shape[1:]
         meta = base_meta(
-            "streams",
-            CLASS_NAMES,
+            kind,
+            windowing.class_names,
             rows,
             cols,
-            conditioning.sample_rate_hz,
-            settings.to_dict(),
+            windowing.conditioning["sample_rate_hz"],
+            windowing.settings,
             seed,
         )
-        meta["conditioning"] = conditioning.to_dict()
-        meta["generation"] = {
-            "builder": "build_dataset_from_streams",
-            "paths": paths,
-            "windows_per_recording": int(windows_per_recording),
-            "invalid_windows_per_recording": int(invalid_windows_per_recording),
-            "recording_seed": "numpy SeedSequence(seed, spawn_key=(file index,))",
-        }
+        meta["conditioning"] = windowing.conditioning
+        meta["generation"] = generation
         return collector.finish(meta, overwrite)
     except BaseException:
         writer.abort()
