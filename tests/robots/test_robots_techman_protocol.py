@@ -217,7 +217,8 @@ def test_wire_pose_round_trip(quat: list[float], position: list[float]) -> None:
     pose = Pose(np.array(position), np.array(quat))
     back = pose_from_wire(pose_to_wire(pose))
     np.testing.assert_allclose(back.position, pose.position, atol=1e-12)
-    np.testing.assert_allclose(back.rotation(), pose.rotation(), atol=1e-9)
+    # Euler angles lose precision near gimbal lock (pitch +-90 deg): about sqrt(eps) there
+    np.testing.assert_allclose(back.rotation(), pose.rotation(), atol=1e-7)
 
 
 def test_wire_pose_rejects_bad_vectors() -> None:
