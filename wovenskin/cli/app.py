@@ -203,6 +203,13 @@ MODEL_HELP = "Checkpoint directory with model.onnx (default: the shipped model).
 MODEL = typer.Option(None, help=MODEL_HELP)
 THREADS = typer.Option(None, help="ONNX Runtime threads for the model (default 1).")
 JSON_OUT = typer.Option(False, "--json", help="Print one JSON object.")
+MIN_PROBABILITY = typer.Option(
+    None, help="Least class probability that counts (default: the model's recommendation)."
+)
+POSES = typer.Option(
+    None,
+    help="Pose file (default: $WOVENSKIN_HOME/poses.toml, else ~/.config/wovenskin/poses.toml).",
+)
 
 
 def given(**options) -> dict:

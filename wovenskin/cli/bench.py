@@ -12,6 +12,7 @@ import typer
 
 from wovenskin.cli.app import (
     JSON_OUT,
+    MIN_PROBABILITY,
     MODEL,
     THREADS,
     bench_app,
@@ -107,9 +108,7 @@ def bench_recognition(
     conditions: str = typer.Option(
         None, help="Comma-separated subset of the conditions (default: all of them)."
     ),
-    min_probability: float = typer.Option(
-        None, help="Least class probability that counts (default: the model's recommendation)."
-    ),
+    min_probability: float = MIN_PROBABILITY,
     threads: int = THREADS,
     json_out: bool = JSON_OUT,
 ) -> None:
@@ -170,9 +169,7 @@ def bench_gestures(
     save_streams: Path = typer.Option(
         None, help="Folder to keep every generated stream in (labelled-stream .npz)."
     ),
-    min_probability: float = typer.Option(
-        None, help="Least class probability that counts (default: the model's recommendation)."
-    ),
+    min_probability: float = MIN_PROBABILITY,
     threads: int = THREADS,
     json_out: bool = JSON_OUT,
 ) -> None:

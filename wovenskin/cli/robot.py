@@ -10,6 +10,7 @@ from rich.markup import escape
 
 from wovenskin.cli.app import (
     MODEL,
+    POSES,
     ROBOT_HELP,
     SKIN_HELP,
     app,
@@ -68,7 +69,7 @@ def run(
     record: Path = typer.Option(None, help="Record the session (.wsrec): skin, commands, robot."),
     seconds: float = typer.Option(None, help="Stop after this many seconds of skin time."),
     mapping: Path = typer.Option(None, help="Action mapping TOML (default: the packaged one)."),
-    poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
+    poses: Path = POSES,
     overwrite: bool = typer.Option(False, help="Replace existing --trace / --record files."),
     ros2_publish: str = typer.Option(
         None,
@@ -296,7 +297,7 @@ def _run_dashboard(
 def pose_set(
     name: str = typer.Argument(..., help="initial or home."),
     robot: str = typer.Option("sim", help=ROBOT_HELP),
-    poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
+    poses: Path = POSES,
 ) -> None:
     """Store the robot's current pose under NAME (initial: the task's initial pose)."""
     from wovenskin.control.poses import PoseStore, set_pose_from_robot
@@ -316,7 +317,7 @@ def pose_set(
 @pose_app.command("show")
 @user_errors
 def pose_show(
-    poses: Path = typer.Option(None, help="Pose file (default: ~/.config/wovenskin/poses.toml)."),
+    poses: Path = POSES,
 ) -> None:
     """Show the stored poses and, where none is stored, the simulated arm's built-in ones."""
     from wovenskin.control.poses import PoseStore

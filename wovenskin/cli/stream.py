@@ -8,6 +8,7 @@ import typer
 
 from wovenskin.cli.app import (
     JSON_OUT,
+    MIN_PROBABILITY,
     MODEL,
     THREADS,
     app,
@@ -25,9 +26,6 @@ from wovenskin.errors import DataError
 EVERY = typer.Option(None, help="Run the model on every K-th frame's window (default 1).")
 DWELL_MS = typer.Option(
     None, help="Dwell time before a gesture acts (default: the model's recommendation, else 100)."
-)
-MIN_PROBABILITY = typer.Option(
-    None, help="Least class probability that counts (default: the model's recommendation)."
 )
 
 
