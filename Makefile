@@ -37,7 +37,7 @@ test: $(VENV)/.installed-dev
 
 # The acceptance tier: a short user study run in the browser, both tasks completed with the
 # page's keyboard, jog panel and virtual skin by a scripted operator as study trials, then
-# the report (9-12 minutes on this machine; left out of `make test` to keep it under 15
+# the report (6-12 minutes on this machine; left out of `make test` to keep it under 15
 # minutes).
 test-acceptance: $(VENV)/.installed-dev
 	@command -v chromium >/dev/null 2>&1 || $(MAKE) --no-print-directory chromium
