@@ -103,26 +103,10 @@ def test_run_blocking_waits_on_the_session_clock_and_returns_the_result():
     assert woke[0] >= 1.0 and clock.t > 2.0
 
 
-def test_run_blocking_raises_the_plans_error_and_stops_when_told():
+def test_run_blocking_raises_the_plans_error():
     def failing():
         yield Sleep(0.2)
         raise ValueError("cannot go on")
 
     with pytest.raises(ValueError, match="cannot go on"):
         run_blocking(failing(), _Clock(), poll_s=0.0)
-
-    closed, looks = [], []
-
-    def endless():
-        try:
-            while True:
-                yield Sleep(0.1)
-        finally:
-            closed.append(True)
-
-    def going_on() -> bool:
-        looks.append(1)
-        return len(looks) < 5
-
-    assert run_blocking(endless(), _Clock(), going_on=going_on, poll_s=0.0) is None
-    assert closed == [True] and len(looks) == 5

@@ -94,19 +94,14 @@ class ScriptRunner:
             self._wait = Sleep(0.0)
 
 
-def run_blocking(
-    plan: Plan,
-    clock: Callable[[], float],
-    going_on: Callable[[], bool] = lambda: True,
-    poll_s: float = 0.01,
-) -> Any:
+def run_blocking(plan: Plan, clock: Callable[[], float], poll_s: float = 0.01) -> Any:
     """Step ``plan`` to its end in this thread, its waits on ``clock`` (the session's
     ``now``, so a wait lasts session time however the session keeps up with the wall),
-    looking every ``poll_s`` wall seconds; stop it early once ``going_on()`` is false
-    (the trial ended).  Returns the plan's result, or raises the error it ended on."""
+    looking every ``poll_s`` wall seconds.  Returns the plan's result, or raises the
+    error it ended on."""
     runner = ScriptRunner()
     runner.start(plan, clock())
-    while runner.running and going_on():
+    while runner.running:
         runner.tick(clock())
         time.sleep(poll_s)
     runner.stop()
