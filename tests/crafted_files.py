@@ -136,6 +136,10 @@ CRAFTED: dict[str, bytes] = {
     "deep metadata json.npz": npz(
         {**stream_members(), "metadata_json": npy(np.array(deep_json(3000)))}
     ),
+    "metadata info a list.npz": npz(
+        {**stream_members(), "metadata_json": npy(np.array(json.dumps({"info": [2, 2]})))}
+    ),
+    "header info a list.wsrec": wsrec(header(info=[2, 2])),
     "metadata info wrong types.npz": npz(
         {**stream_members(), "metadata_json": npy(np.array(json.dumps({"info": {"rows": "x"}})))}
     ),
