@@ -190,8 +190,12 @@ class SimulatedOperator:
                 v = self.speed[kind] * self.hand.scale
                 brake = v * v / (2 * a)
                 reached = False
-                if sent:
-                    reached = yield from self._hold(axis, sign, error, brake, v, aim, kind)
+                try:
+                    if sent:
+                        reached = yield from self._hold(axis, sign, error, brake, v, aim, kind)
+                except HeldBack:  # let go before leaving the axis for the other
+                    yield from self.hand.release()
+                    raise
                 yield from self.hand.release()
                 yield from self.settle()
                 if reached:  # learn how late a release acts: let go earlier or later
