@@ -38,4 +38,4 @@ def wait_until(predicate, timeout: float = 20.0) -> bool:
         if predicate():
             return True
         time.sleep(0.02)
-    return False
+    return bool(predicate())  # a last look: the deadline may fall between two polls
