@@ -12,6 +12,7 @@ from types import SimpleNamespace
 
 import pytest
 from cli_helpers import invoke, one_line_error
+from paths import is_png
 
 from wovenskin.bench import model as bench_model
 from wovenskin.recognition.checkpoint_meta import read_meta
@@ -188,7 +189,7 @@ def test_eval_writes_the_report_beside_the_model(trained):
     result = invoke("eval", "--model", trained)
     assert result.exit_code == 0, result.output
     report = trained / "eval-grouped"
-    assert (report / "confusion.png").read_bytes()[:4] == b"\x89PNG"
+    assert is_png(report / "confusion.png")
     metrics = json.loads((report / "metrics.json").read_text())
     assert metrics["split"] == "grouped" and metrics["seen_in_training"] == 0
     assert json.loads((report / "confusion.json").read_text())["n"] == metrics["n_windows"]

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from paths import is_png
 from stand_ins import ContactMeans
 
 from wovenskin.control.mapping import ActionMapping
@@ -162,7 +163,7 @@ def test_wovenskin_profile_prints_and_draws_the_mapping_profile(tmp_path) -> Non
     result = CliRunner().invoke(app, ["profile", "--plot", str(plot)])
     assert result.exit_code == 0, result.output
     assert "graded" in result.output and "107.0" in result.output  # 2.5 s held: 107 mm
-    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert is_png(plot)
     bad = tmp_path / "bad.toml"
     bad.write_text('[motion.profile]\nkind = "fast"\n')
     result = CliRunner().invoke(app, ["profile", "--mapping", str(bad)])

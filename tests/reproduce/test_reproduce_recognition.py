@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from paths import PNG_SIGNATURE, is_png
 
 from wovenskin.recording.formats import LabelledCaptures, write_labelled_captures
 from wovenskin.reproduce import recognition_runs as runs
@@ -21,8 +22,6 @@ from wovenskin.reproduce.recognition import (
     recognition_section,
 )
 from wovenskin.study.document import Image, Table, Text, to_html, to_markdown
-
-PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +44,7 @@ def test_pngs_exist_and_every_image_is_one(section):
     assert sorted(b.path for b in images) == sorted(figures["png"].values())
     for image in images:
         data = (out / image.path).read_bytes()
-        assert data.startswith(PNG_MAGIC) and len(data) > 1000
+        assert data.startswith(PNG_SIGNATURE) and len(data) > 1000
     html = to_html(blocks, "recognition", out)  # embeds every PNG: fails on a missing one
     assert html.count("data:image/png;base64,") == 4
     assert to_markdown(blocks).startswith("## Recognition")
@@ -189,7 +188,7 @@ def test_haart_part_on_synthetic_captures(tmp_path):
     h = figures["haart"]
     assert sorted(h["participants"]) == ["p1", "p2"] and h["n_captures"] == 12
     assert 0.0 <= h["capture_accuracy"] <= 1.0 and h["epochs"] == 1
-    assert (tmp_path / figures["png"]["haart"]).read_bytes().startswith(PNG_MAGIC)
+    assert is_png(tmp_path / figures["png"]["haart"])
     blocks = haart_blocks(config, figures)
     table = next(b for b in blocks if isinstance(b, Table))
     assert table.rows[0][1] == f"{100 * h['capture_accuracy']:.1f} %"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from paths import is_png
+
 from wovenskin.study.plots import box_plots, trajectory_participant, trajectory_plot
 from wovenskin.study.reader import read_trials
 from wovenskin.study.recorder import TrialRecorder
@@ -25,6 +27,6 @@ def test_box_plots_and_paths_are_pngs(tmp_path):
     assert trajectory_participant(trials, "pour", ["skin", "pendant"]) is None
     assert trajectory_plot(trials, "pour", ["skin", "pendant"], tmp_path / "x.png") is None
     path, who = trajectory_plot(trials, "pour", ["skin", "keyboard"], tmp_path / "p.png")
-    assert who == "P2" and path.read_bytes().startswith(b"\x89PNG")
+    assert who == "P2" and is_png(path)
     box = box_plots(trials, "pour", ["skin", "keyboard"], tmp_path / "b.png", synthetic=True)
-    assert box.read_bytes().startswith(b"\x89PNG")
+    assert is_png(box)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import shutil
 
 import pytest
+from paths import is_png
 
 from wovenskin.outputs import OutputExistsError
 from wovenskin.study.report import SYNTHETIC_BANNER, write_report
@@ -42,7 +43,7 @@ def test_the_report_has_the_papers_tables_statistics_and_plots(study, tmp_path):
     names = sorted(p.name for p in report.images)
     assert names == ["pick_place-box.png", "pick_place-paths.png", "pour-box.png", "pour-paths.png"]
     for path in report.images:
-        assert path.read_bytes().startswith(b"\x89PNG")
+        assert is_png(path)
         assert f"]({path.name})" in md
     page = report.html.read_text()
     assert page.count("data:image/png;base64,") == 4 and "<table>" in page

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from paths import is_png
 from rich.console import Console
 from tiny_models import HPARAMS as TINY_TCN
 from tiny_models import TINY_SIM_SET
@@ -37,8 +38,6 @@ from wovenskin.training.report import (
     split_record,
     write_report,
 )
-
-PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")
@@ -167,7 +166,7 @@ def test_write_report_files(data, checkpoint, tmp_path):
     files = write_report(report, tmp_path / "eval")
     assert files.metrics_json.name == METRICS_FILE and files.confusion_json.name == CONFUSION_JSON
     assert files.confusion_png.name == CONFUSION_PNG
-    assert files.confusion_png.read_bytes()[:8] == PNG_MAGIC
+    assert is_png(files.confusion_png)
     metrics = json.loads(files.metrics_json.read_text())
     assert metrics["accuracy"] == report.accuracy and metrics["split"] == "all"
     confusion = json.loads(files.confusion_json.read_text())

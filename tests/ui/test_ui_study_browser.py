@@ -39,6 +39,7 @@ from page_drivers import (
     PendantDriver,
     ServerView,
 )
+from paths import is_png
 from skin_driver import SkinDriver
 from stand_ins import ContactMeans
 from test_ui_dashboard_browser import SHOTS, _save, browser, open_page  # noqa: F401 - the fixture
@@ -252,5 +253,5 @@ def test_the_study_report_has_every_task_and_interface(study_dir) -> None:
         assert (report.markdown.parent / f"{task}-box.png").stat().st_size > 1000
         assert f"Task: {task}" in report.markdown.read_text()
     pngs = [p for p in report.images if p.suffix == ".png"]
-    assert len(pngs) >= 2 and all(p.read_bytes()[:4] == b"\x89PNG" for p in pngs)
+    assert len(pngs) >= 2 and all(is_png(p) for p in pngs)
     assert "100 %" in report.markdown.read_text()
