@@ -7,6 +7,7 @@ package imports only from lower layers):
 - :mod:`wovenskin.skin` -- skin layout, frames, wire protocol, the serial source;
 - :mod:`wovenskin.recording` -- the native recording format, interchange formats, bags, replay;
 - :mod:`wovenskin.signal` -- calibration, baseline tracking, filtering, contacts, lift-off;
+- :mod:`wovenskin.tracking` -- fingertips followed from landing to lift, the touch so far;
 - :mod:`wovenskin.sim` -- the physically motivated simulated skin and simulated people;
 - :mod:`wovenskin.recognition` -- the live recogniser (ONNX Runtime) and the execution rules;
 - :mod:`wovenskin.robots` -- the robot interface and one folder per arm (sim, techman, ur, ros2);

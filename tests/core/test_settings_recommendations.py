@@ -39,6 +39,7 @@ def model_dir(tmp_path_factory):
     shutil.copy(shipped / "model.onnx", folder / "model.onnx")
     meta = json.loads((shipped / "meta.json").read_text())
     meta["arbiter"] = dict(RECOMMENDED)
+    meta.setdefault("reader", {})["arbiter"] = dict(RECOMMENDED)  # the shipped reader's rules
     (folder / "meta.json").write_text(json.dumps(meta))
     return folder
 

@@ -66,6 +66,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("ros2",),  # ROS 2 without a ROS install: message types, DDS entities, topic names
     ("skin",),
     ("recording", "signal"),
+    ("tracking",),  # fingertips followed as tracks, the touch so far
     ("sim", "recognition"),
     ("robots",),
     ("tasks",),  # study task scenes on the simulated arm

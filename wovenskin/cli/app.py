@@ -206,6 +206,12 @@ JSON_OUT = typer.Option(False, "--json", help="Print one JSON object.")
 MIN_PROBABILITY = typer.Option(
     None, help="Least class probability that counts (default: the model's recommendation)."
 )
+READER = typer.Option(
+    None,
+    help="How the model's windows are read: touch (the whole touch so far, fused with the "
+    "fingers' tracks) or window (the paper's: each 150 ms window alone); default: the "
+    "model's recommendation (touch for the shipped model).",
+)
 POSES = typer.Option(
     None,
     help="Pose file (default: $WOVENSKIN_HOME/poses.toml, else ~/.config/wovenskin/poses.toml).",
@@ -230,6 +236,7 @@ def pipeline_settings(
     every: int | None = None,
     dwell_ms: float | None = None,
     min_probability: float | None = None,
+    reader: str | None = None,
 ):
     """Pipeline settings: each option given, else the model's recommendation, else the
     settings default (:func:`~wovenskin.recognition.pipeline.pipeline_settings_for_model`,
@@ -238,7 +245,7 @@ def pipeline_settings(
 
     dwell_s = None if dwell_ms is None else dwell_ms / 1000
     return pipeline_settings_for_model(
-        recognizer, every, dwell_s=dwell_s, min_probability=min_probability
+        recognizer, every, reader, dwell_s=dwell_s, min_probability=min_probability
     )
 
 

@@ -14,6 +14,7 @@ from wovenskin.cli.app import (
     JSON_OUT,
     MIN_PROBABILITY,
     MODEL,
+    READER,
     THREADS,
     bench_app,
     console,
@@ -109,6 +110,7 @@ def bench_recognition(
         None, help="Comma-separated subset of the conditions (default: all of them)."
     ),
     min_probability: float = MIN_PROBABILITY,
+    reader: str | None = READER,
     threads: int = THREADS,
     json_out: bool = JSON_OUT,
 ) -> None:
@@ -127,7 +129,7 @@ def bench_recognition(
     seed = DEFAULT_BASE_SEED if seed is None else seed
     names = condition_names(conditions)
     recognizer = load_recognizer(model, threads=threads)
-    settings = pipeline_settings(recognizer, min_probability=min_probability)
+    settings = pipeline_settings(recognizer, min_probability=min_probability, reader=reader)
     bar, task = counting_bar(err_console, "bench recognition", len(names) * streams_per_condition)
 
     def update(done: int, total: int, what: str) -> None:
@@ -170,6 +172,7 @@ def bench_gestures(
         None, help="Folder to keep every generated stream in (labelled-stream .npz)."
     ),
     min_probability: float = MIN_PROBABILITY,
+    reader: str | None = READER,
     threads: int = THREADS,
     json_out: bool = JSON_OUT,
 ) -> None:
@@ -184,7 +187,7 @@ def bench_gestures(
         check_writable(save_streams, folder=True)  # refused now, not after the streams
 
     recognizer = load_recognizer(model, threads=threads)
-    settings = pipeline_settings(recognizer, min_probability=min_probability)
+    settings = pipeline_settings(recognizer, min_probability=min_probability, reader=reader)
     with err_console.status("bench gestures...") as status:
         result = run_gestures_benchmark(
             recognizer, settings, progress=lambda what: status.update(f"bench gestures: {what}"),

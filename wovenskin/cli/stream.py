@@ -10,6 +10,7 @@ from wovenskin.cli.app import (
     JSON_OUT,
     MIN_PROBABILITY,
     MODEL,
+    READER,
     THREADS,
     app,
     console,
@@ -37,6 +38,7 @@ def replay(
     every: int | None = EVERY,
     dwell_ms: float | None = DWELL_MS,
     min_probability: float | None = MIN_PROBABILITY,
+    reader: str | None = READER,
     threads: int = THREADS,
     json_out: bool = typer.Option(False, "--json", help="Print only the command log (JSON lines)."),
 ) -> None:
@@ -51,7 +53,7 @@ def replay(
     unknown = unknown_labels(labelled.event_labels, known)
     if unknown:  # replay only prints commands; eval-stream refuses to score such a stream
         warn(unknown_labels_message(str(stream), unknown, known))
-    settings = pipeline_settings(recognizer, every, dwell_ms, min_probability)
+    settings = pipeline_settings(recognizer, every, dwell_ms, min_probability, reader)
     result = run_pipeline(labelled, recognizer, settings, on_warning=warn)
     if json_out:
         print(format_command_log(result.commands), end="", flush=True)
@@ -73,6 +75,7 @@ def eval_stream(
     every: int | None = EVERY,
     dwell_ms: float | None = DWELL_MS,
     min_probability: float | None = MIN_PROBABILITY,
+    reader: str | None = READER,
     threads: int = THREADS,
     json_out: bool = JSON_OUT,
 ) -> None:
@@ -95,7 +98,7 @@ def eval_stream(
         unknown = unknown_labels(load_stream(path).event_labels, known)
         if unknown:  # no command could match them: scored, they would pass as misses
             raise DataError(f"{unknown_labels_message(str(path), unknown, known)}; not scored")
-    settings = pipeline_settings(recognizer, every, dwell_ms, min_probability)
+    settings = pipeline_settings(recognizer, every, dwell_ms, min_probability, reader)
     rows, details = [], []
     for path in streams:
         labelled = load_stream(path)

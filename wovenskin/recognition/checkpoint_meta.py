@@ -90,6 +90,9 @@ class CheckpointMeta:
     # execution settings measured to suit this model (e.g. {"min_probability": 0.9}); used
     # by the live pipeline unless the user gives their own
     arbiter: dict[str, Any] = field(default_factory=dict)
+    # the reader recommended for this model ({"kind": "touch", its settings and its own
+    # "arbiter" settings}; empty: the paper's window-by-window reading)
+    reader: dict[str, Any] = field(default_factory=dict)
     torch_version: str = ""
     wovenskin_version: str = ""
     created: str = ""
@@ -181,7 +184,7 @@ class CheckpointMeta:
             for key in ("row_pitch_mm", "col_pitch_mm"):
                 if values.get(key) is not None:
                     values[key] = float(values[key])
-            for key in ("hparams", "conditioning", "training_data", "metrics", "arbiter"):
+            for key in ("hparams", "conditioning", "training_data", "metrics", "arbiter", "reader"):
                 if key in values and not isinstance(values[key], Mapping):
                     raise TypeError(f"{key} must be an object")
             return cls(**values)

@@ -37,6 +37,7 @@ from scipy import ndimage
 
 from wovenskin.errors import ConfigError
 from wovenskin.skin.layout import DEFAULT_COL_PITCH_MM, DEFAULT_ROW_PITCH_MM
+from wovenskin.tracking.touch import RELATIVE_FLOOR
 
 
 def check_positive(name: str, value: float) -> None:
@@ -78,9 +79,6 @@ _REGION_STRUCTURE = np.zeros((3, 3, 3), dtype=bool)
 _REGION_STRUCTURE[1] = True  # 8 neighbours within a frame, never across frames
 
 
-RELATIVE_FLOOR = 0.15
-"""Share of a frame's peak below which a channel does not count toward the touch's
-centroid, spread and total (see :func:`touch_features`)."""
 
 
 def touch_features(

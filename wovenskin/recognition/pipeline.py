@@ -50,6 +50,13 @@ from wovenskin.recognition.checkpoint_meta import ModelInputError
 from wovenskin.recognition.onnx_runtime import ONNX_THREADS, OnnxRecognizer
 from wovenskin.recognition.shipped import resolve_model_dir
 from wovenskin.recognition.streaming import Recognizer, StreamingRecognizer, model_window
+from wovenskin.recognition.touch_reader import (
+    READERS,
+    TOUCH,
+    WINDOW,
+    ReaderSettings,
+    TouchRecognizer,
+)
 from wovenskin.recording.files import read_stream
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.signal.conditioner import LiveConditioner
@@ -63,7 +70,10 @@ RESET = "reset"
 
 @dataclass(frozen=True)
 class PipelineSettings:
-    """How often the model runs, the execution rules and the "being performed" thresholds.
+    """How often the model runs, the execution rules, the "being performed" thresholds and
+    the reader (``"window"``: the paper's, window by window; ``"touch"``: the whole touch
+    so far, :mod:`~wovenskin.recognition.touch_reader`, with ``reader_settings``, ``None``:
+    its defaults).
 
     ``performing`` ``None`` takes the default thresholds with the skin's own channel
     pitches (from the stream or the model's checkpoint when known).
@@ -72,10 +82,14 @@ class PipelineSettings:
     every: int = 1
     arbiter: ArbiterSettings = field(default_factory=ArbiterSettings)
     performing: PerformingSettings | None = None
+    reader: str = WINDOW
+    reader_settings: ReaderSettings | None = None
 
     def __post_init__(self) -> None:
         if not (isinstance(self.every, int) and self.every >= 1):
             raise ConfigError(f"every must be an integer >= 1, got {self.every!r}")
+        if self.reader not in READERS:
+            raise ConfigError(f"reader must be one of {', '.join(READERS)}, got {self.reader!r}")
 
 
 def load_recognizer(
@@ -87,14 +101,32 @@ def load_recognizer(
     return OnnxRecognizer(resolve_model_dir(model), threads=threads)
 
 
-def arbiter_settings_for_model(recognizer: Any, **overrides: Any) -> ArbiterSettings:
+def model_reader(recognizer: Any, reader: str | None = None) -> str:
+    """The reader to run a recogniser with: ``reader`` when given (an explicit option), else
+    the checkpoint's recommendation (``meta.json``'s ``reader.kind``), else ``"window"``."""
+    if reader is not None:
+        if reader not in READERS:
+            raise ConfigError(f"reader must be one of {', '.join(READERS)}, got {reader!r}")
+        return reader
+    meta = getattr(recognizer, "meta", None)
+    kind = (getattr(meta, "reader", None) or {}).get("kind")
+    return kind if kind in READERS else WINDOW
+
+
+def arbiter_settings_for_model(
+    recognizer: Any, reader: str | None = None, **overrides: Any
+) -> ArbiterSettings:
     """The execution rules for a recogniser, each setting resolved the one way: an override
-    that is not ``None`` (an explicit option), else the checkpoint's recommended ``arbiter``
-    settings (``meta.json``, measured for that model, e.g. ``min_probability``), else the
+    that is not ``None`` (an explicit option), else the checkpoint's recommended settings
+    for its reader (``meta.json``: ``arbiter`` for the window reader, ``reader.arbiter``
+    for the touch reader; measured for that model, e.g. ``min_probability``), else the
     :class:`ArbiterSettings` default.  A recommendation the arbiter does not know is
     ignored."""
     meta = getattr(recognizer, "meta", None)
-    stored = dict(getattr(meta, "arbiter", None) or {})
+    if model_reader(recognizer, reader) == TOUCH:
+        stored = dict((getattr(meta, "reader", None) or {}).get("arbiter") or {})
+    else:
+        stored = dict(getattr(meta, "arbiter", None) or {})
     known = set(ArbiterSettings.__dataclass_fields__)
     values = {k: v for k, v in stored.items() if k in known}
     values.update({k: v for k, v in overrides.items() if v is not None})
@@ -102,16 +134,22 @@ def arbiter_settings_for_model(recognizer: Any, **overrides: Any) -> ArbiterSett
 
 
 def pipeline_settings_for_model(
-    recognizer: Any, every: int | None = None, **arbiter_overrides: Any
+    recognizer: Any, every: int | None = None, reader: str | None = None, **arbiter_overrides: Any
 ) -> PipelineSettings:
     """The pipeline settings every command and the dashboard run a model with: the model on
-    every ``every``-th window (``None``: the :class:`PipelineSettings` default) under the
-    execution rules of :func:`arbiter_settings_for_model` (explicit overrides, else the
-    model's recommendation, else the defaults)."""
-    arbiter = arbiter_settings_for_model(recognizer, **arbiter_overrides)
-    if every is None:
-        return PipelineSettings(arbiter=arbiter)
-    return PipelineSettings(every=every, arbiter=arbiter)
+    every ``every``-th window (``None``: the :class:`PipelineSettings` default), read by
+    :func:`model_reader` under the execution rules of :func:`arbiter_settings_for_model`
+    (explicit overrides, else the model's recommendation, else the defaults)."""
+    kind = model_reader(recognizer, reader)
+    arbiter = arbiter_settings_for_model(recognizer, kind, **arbiter_overrides)
+    meta = getattr(recognizer, "meta", None)
+    reader_settings = (
+        ReaderSettings.from_dict(getattr(meta, "reader", None) or {}) if kind == TOUCH else None
+    )
+    extra = {} if every is None else {"every": every}
+    return PipelineSettings(
+        arbiter=arbiter, reader=kind, reader_settings=reader_settings, **extra
+    )
 
 
 def conditioning_for_model(recognizer: Any) -> ConditioningConfig | None:
@@ -191,6 +229,17 @@ class LivePipeline:
             if pitches is not None:
                 performing = replace(performing, row_pitch_mm=pitches[0], col_pitch_mm=pitches[1])
         self.performing = PerformingDetector(sample_rate_hz, performing)
+        self.touch: TouchRecognizer | None = None
+        if self.settings.reader == TOUCH:
+            self.touch = TouchRecognizer(
+                self.streaming.class_names,
+                rows,
+                cols,
+                performing.row_pitch_mm,
+                performing.col_pitch_mm,
+                sample_rate_hz,
+                self.settings.reader_settings,
+            )
         self.arbiter = Arbiter(self.streaming.class_names, sample_rate_hz, self.settings.arbiter)
         self.class_names = self.streaming.class_names
         self.changes: list[CommandChange] = []
@@ -261,15 +310,22 @@ class LivePipeline:
             ended = self.reset(float(np.asarray(block.t).reshape(-1)[0]))
             if ended is not None:
                 changes.append(ended)
-        changes += self.process(block.t, cond.signal, cond.active, cond.touched)
+        changes += self.process(block.t, cond.signal, cond.active, cond.touched, cond.fast)
         if len(index):
             self._next_index = int(index[-1]) + 1
         return changes
 
     def process(
-        self, t: np.ndarray, signal: np.ndarray, active: np.ndarray, touched: np.ndarray
+        self,
+        t: np.ndarray,
+        signal: np.ndarray,
+        active: np.ndarray,
+        touched: np.ndarray,
+        fast: np.ndarray | None = None,
     ) -> list[CommandChange]:
-        """Consecutive conditioned frames with their stream times; returns the changes."""
+        """Consecutive conditioned frames with their stream times; returns the changes.
+        ``fast``, the short moving average of the same frames, is what the touch reader
+        tracks the fingers on (``signal`` when not given)."""
         t = np.asarray(t, dtype=np.float64).reshape(-1)
         signal = np.asarray(signal)
         if signal.ndim == 2:
@@ -281,13 +337,18 @@ class LivePipeline:
         predictions = self.streaming.push(signal, active, touched)
         performing = self.performing.update(signal.astype(np.float32, copy=False), active)
         touched = np.asarray(touched, dtype=bool).reshape(-1)
+        predicted, rows = predictions.predicted, predictions.probabilities
+        if self.touch is not None:
+            tracked = signal if fast is None else np.asarray(fast)
+            if tracked.ndim == 2:
+                tracked = tracked[np.newaxis]
+            if tracked.shape != signal.shape:
+                raise DataError(f"fast frames shaped {tracked.shape}, frames {signal.shape}")
+            rows = self.touch.run(tracked, np.asarray(active), touched, rows)
+            predicted = np.ones(len(t), dtype=bool)
         if self.recorded is not None:  # the arbiter's inputs, to replay other rules on
-            self.recorded.append(
-                (t, touched, performing, predictions.predicted, predictions.probabilities)
-            )
-        changes = self.arbiter.run(
-            t, touched, performing, predictions.predicted, predictions.probabilities
-        )
+            self.recorded.append((t, touched, performing, predicted, rows))
+        changes = self.arbiter.run(t, touched, performing, predicted, rows)
         if t.size:
             self.last_t = float(t[-1])
             self.touched = bool(touched[-1])
@@ -303,6 +364,8 @@ class LivePipeline:
             self.changes.append(ended)
         self.streaming.reset()
         self.performing.reset()
+        if self.touch is not None:
+            self.touch.reset()
         self.arbiter = Arbiter(self.class_names, self.arbiter.sample_rate_hz, self.arbiter.settings)
         self.touched = False
         self._next_index = None
@@ -416,7 +479,9 @@ def run_pipeline(
         stop = min(start + step, n_frames)
         out = conditioner.feed(frames[start:stop])
         if out is not None and len(out):  # the trailing frames of all fed so far
-            pipeline.process(times[stop - len(out) : stop], out.signal, out.active, out.touched)
+            pipeline.process(
+                times[stop - len(out) : stop], out.signal, out.active, out.touched, out.fast
+            )
     elapsed = time.perf_counter() - started
     calibration = conditioner.calibration
     return PipelineResult(

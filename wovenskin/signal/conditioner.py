@@ -69,6 +69,13 @@ class ConditionedFrames:
     baseline: np.ndarray  # (R, C) float64 baseline after the last frame
     invalid: np.ndarray  # (N, R, C) bool reading was NaN/inf (last good value held)
     index: np.ndarray  # (N,) int64 frame index since the conditioner started
+    fast: np.ndarray | None = None  # (N, R, C) float32 short moving average (contact tracking)
+
+    @property
+    def tracking_signal(self) -> np.ndarray:
+        """The signal contact tracking reads: the short moving average when there is one
+        (it lags a moving finger by a quarter of the long one), else ``signal``."""
+        return self.signal if self.fast is None else self.fast
 
     def __len__(self) -> int:
         return int(self.signal.shape[0])
@@ -88,6 +95,7 @@ class ConditionedFrames:
             baseline=baseline.copy(),
             invalid=np.zeros((0, rows, cols), dtype=bool),
             index=np.arange(start_index, start_index, dtype=np.int64),
+            fast=np.zeros((0, rows, cols), dtype=np.float32),
         )
 
     @staticmethod
@@ -110,6 +118,11 @@ class ConditionedFrames:
             baseline=last.baseline.copy(),
             invalid=np.concatenate([p.invalid for p in parts]),
             index=np.concatenate([p.index for p in parts]),
+            fast=(
+                None
+                if any(p.fast is None for p in parts)
+                else np.concatenate([p.fast for p in parts])
+            ),
         )
 
 
@@ -196,7 +209,7 @@ class Conditioner:
         if n == 0:
             return ConditionedFrames.empty(self.dead, self.baseline, start)
         if n <= self._tracker.frames_to_block_end:  # one block: the live, per-frame case
-            signal, active, lifted, invalid, saturated = self._condition_segment(x)
+            signal, active, lifted, invalid, saturated, fast = self._condition_segment(x)
             labels = self._detector.last_labels
         else:
             segments = []
@@ -206,7 +219,8 @@ class Conditioner:
                 segments.append((*self._condition_segment(x[pos:stop]), self._detector.last_labels))
                 pos = stop
             lengths = [len(s[0]) for s in segments]
-            labels = _join_labels([s[5] for s in segments], lengths)
+            labels = _join_labels([s[6] for s in segments], lengths)
+            fast = np.concatenate([s[5] for s in segments])
             signal = np.concatenate([s[0] for s in segments])
             active = np.concatenate([s[1] for s in segments])
             lifted = np.concatenate([s[2] for s in segments])
@@ -235,13 +249,17 @@ class Conditioner:
             baseline=self._tracker.baseline,
             invalid=invalid,
             index=np.arange(start, start + n, dtype=np.int64),
+            fast=fast.astype(np.float32),
         )
 
     def _condition_segment(
         self, x: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    ) -> tuple[
+        np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray
+    ]:
         """Steps 1-7 on frames ``x`` within one baseline block: ``(signal, active, lifted,
-        invalid, saturated)`` with the flags ``None`` when no reading was bad."""
+        invalid, saturated, fast)`` with the flags ``None`` when no reading was bad (``fast``
+        is ``signal`` itself when there is no short moving average)."""
         clean, invalid, saturated = self._tracker.guard(x)
         if self._glitches is not None:
             clean = self._glitches.apply(clean)
@@ -256,7 +274,7 @@ class Conditioner:
         else:
             lifted = np.zeros(x.shape[0], dtype=bool)
         self._tracker.accumulate(clean, active)
-        return smoothed, active, lifted, invalid, saturated
+        return smoothed, active, lifted, invalid, saturated, smoothed if fast is None else fast
 
 
 def _join_labels(labels: list[np.ndarray | None], lengths: list[int]) -> np.ndarray | None:

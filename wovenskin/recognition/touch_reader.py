@@ -1,0 +1,257 @@
+"""The touch reader: which gesture the whole touch so far is, fused from the tracks and the network.
+
+The paper's recogniser judges every 150 ms window alone.  :class:`TouchRecognizer` reads
+the touch from its first contact to now instead, frame by frame and causally:
+
+1. *Which gesture.*  The network's valid-class probabilities are averaged over every
+   window of the touch so far (renormalised without ``invalid``): a window that sees a
+   still finger says little, one that sees the motion says a lot, and the average keeps
+   both.  To their logarithm the touch's geometry (:mod:`wovenskin.tracking.touch`) adds
+   evidence the window cannot weigh: the direction of the coherent displacement for a
+   swipe (``direction_mm``: the penalty for a direction off the displacement grows with
+   the travel), the fingers' count from the blob's shape for one- against two-finger
+   swipes and presses (``two_finger_sd_mm``), the sense of turning for a circle and the
+   sign of the spread's change for a pinch.  The best-scoring gesture is the touch's
+   reading.
+2. *Whether it is happening.*  A reading counts only when the touch shows its motion:
+   a swipe ``min_travel_mm`` of straight coherent travel that has hardly turned, a circle
+   ``min_turn`` turns, a pinch ``min_spread_mm`` of spread change with the right fingers,
+   a push a pressure rise of ``press_ratio`` over ``press_span_s`` with no travel, at
+   least ``press_after_s`` into the touch (a landing ramps in faster).  And the network
+   must have given the gesture at least ``net_peak`` (smoothed over ``net_smoothing_s``)
+   at some window of the touch: geometry alone never starts a command.  A blob wider
+   than ``max_blob_sd_mm`` (a palm, a grasp, a forearm) is no one- or two-finger gesture.
+3. *Keeping it.*  Once a reading counts it is kept while it stays the best-scoring
+   gesture, unless a swipe's path loses its straightness (``keep_straightness``) or turns
+   (``keep_turn``): a scribble or a circle that began as a stroke.
+
+Each frame's reading is a probability row with the read gesture at 1 (``invalid`` at 1
+when nothing counts), so the :mod:`~wovenskin.recognition.arbiter` applies the paper's
+execution rules to it unchanged: 0.1 s of dwell, one command at a time, preemption while
+the fingers are performed, lift-off ends it, flicks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from wovenskin.errors import ConfigError
+from wovenskin.gestures import INVALID, SPECS
+from wovenskin.tracking.touch import TouchReader, TouchSettings, TouchState
+
+TOUCH = "touch"
+WINDOW = "window"
+READERS: tuple[str, ...] = (TOUCH, WINDOW)
+"""The readers the live pipeline can run: the whole touch (this module) or the paper's
+window by window."""
+
+_ANGLE = {"up": -math.pi / 2, "down": math.pi / 2, "right": 0.0, "left": math.pi}
+_FLOOR = 1e-4
+
+
+@dataclass(frozen=True)
+class ReaderSettings:
+    """The touch reader's evidence and thresholds (see the module doc); mm, s, turns."""
+
+    min_travel_mm: float = 6.0
+    min_straightness: float = 0.8
+    max_swipe_turn: float = 0.1  # turns (0.2 pi)
+    keep_straightness: float = 0.4
+    keep_turn: float = 0.2
+    min_turn: float = 0.4
+    min_spread_mm: float = 6.0
+    five_finger_radius_mm: float = 18.0
+    pinch_separation_mm: float = 30.0
+    press_ratio: float = 1.3
+    press_span_s: float = 0.1
+    press_after_s: float = 0.15
+    press_max_travel_mm: float = 4.0
+    two_finger_sd_mm: float = 8.3
+    finger_weight: float = 0.8  # evidence per mm of blob spread
+    direction_mm: float = 5.0  # travel per unit of direction evidence
+    max_blob_sd_mm: float = 14.5
+    net_peak: float = 0.5
+    net_smoothing_s: float = 0.05
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise ConfigError(f"reader setting {f.name} must be a number >= 0, got {value!r}")
+        for name in ("min_straightness", "keep_straightness", "net_peak"):
+            if getattr(self, name) > 1:
+                raise ConfigError(f"reader setting {name} must lie in [0, 1]")
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any] | None) -> ReaderSettings:
+        """Settings from a checkpoint's ``reader`` object (unknown keys are ignored)."""
+        known = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in (values or {}).items() if k in known})
+
+
+def _finger_evidence(state: TouchState, s: ReaderSettings) -> float:
+    """Evidence for two fingers over one (log units, clipped to +-3)."""
+    shape = s.finger_weight * (state.major_sd - s.two_finger_sd_mm)
+    return float(np.clip(shape, -3.0, 3.0)) + (1.0 if state.sustained_fingertips >= 2 else 0.0)
+
+
+class TouchRecognizer:
+    """Fuses the touch's geometry with the network's windows, frame by frame (module doc).
+
+    ``class_names`` are the network's; gestures the vocabulary does not declare (a user's
+    own) are read from the network alone.
+    """
+
+    def __init__(
+        self,
+        class_names: tuple[str, ...],
+        rows: int,
+        cols: int,
+        row_pitch_mm: float,
+        col_pitch_mm: float,
+        sample_rate_hz: float,
+        settings: ReaderSettings | None = None,
+        touch: TouchSettings | None = None,
+    ) -> None:
+        self.class_names = tuple(class_names)
+        if INVALID not in self.class_names:
+            raise ConfigError(f"the touch reader needs an {INVALID!r} class")
+        self.settings = settings or ReaderSettings()
+        self.invalid = self.class_names.index(INVALID)
+        self.valid = np.array([i for i, c in enumerate(self.class_names) if c != INVALID])
+        self.specs = [SPECS.get(self.class_names[i]) for i in self.valid]
+        self.touch = TouchReader(rows, cols, row_pitch_mm, col_pitch_mm, sample_rate_hz, touch)
+        self._smooth = max(1, int(round(self.settings.net_smoothing_s * sample_rate_hz)))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the current touch."""
+        self.touch.reset()
+        self._sum = np.zeros(len(self.valid))
+        self._count = 0
+        self._recent: list[np.ndarray] = []
+        self._peak = np.zeros(len(self.valid))
+        self._held: int | None = None
+        self.reading: str | None = None
+        self.state: TouchState | None = None
+
+    def _geometry(self, st: TouchState) -> np.ndarray:
+        s = self.settings
+        out = np.zeros(len(self.valid))
+        travel = st.travel
+        angle = math.atan2(st.dy, st.dx)
+        kappa = min(travel / s.direction_mm, 6.0) if travel >= 3.0 else 0.0
+        two = _finger_evidence(st, s)
+        turns = st.turning / (2 * math.pi)
+        for j, spec in enumerate(self.specs):
+            if spec is None:
+                continue
+            if spec.motion == "swipe":
+                out[j] += kappa * (math.cos(angle - _ANGLE[spec.direction]) - 1.0)
+                out[j] += min(0.0, two) if spec.fingers == 2 else min(0.0, -two)
+            elif spec.motion == "circle":
+                sign = 1.0 if spec.direction == "cw" else -1.0
+                out[j] += 4.0 * float(np.clip(sign * turns, -1.5, 1.5)) if abs(turns) > 0.15 else 0
+            elif spec.motion == "press":
+                out[j] -= max(0.0, travel - 5.0) / 3.0 + max(0.0, two)
+            elif spec.motion == "pinch":
+                sign = -1.0 if spec.direction == "in" else 1.0
+                out[j] += float(np.clip(sign * st.spread_change / 4.0, -4.0, 4.0))
+        return out
+
+    def _shows(self, j: int, st: TouchState) -> bool:
+        """The touch shows gesture ``j``'s motion (see the module doc)."""
+        spec, s = self.specs[j], self.settings
+        if spec is None:
+            return True
+        wide = st.major_sd > s.max_blob_sd_mm
+        if spec.motion == "swipe":
+            return (
+                st.travel >= s.min_travel_mm
+                and st.straightness >= s.min_straightness
+                and abs(st.turning) < s.max_swipe_turn * 2 * math.pi
+                and not wide
+            )
+        if spec.motion == "circle":
+            return abs(st.turning) >= s.min_turn * 2 * math.pi and not wide
+        if spec.motion == "press":
+            return (
+                st.press_ratio >= s.press_ratio
+                and st.max_travel <= s.press_max_travel_mm
+                and st.age_s >= s.press_after_s
+                and not wide
+            )
+        if spec.fingers >= 5:
+            return abs(st.spread_change) >= s.min_spread_mm and st.radius_max >= (
+                s.five_finger_radius_mm
+            )
+        return (
+            -st.spread_change >= s.min_spread_mm
+            and st.sustained_fingertips >= 2
+            and st.max_separation >= s.pinch_separation_mm
+        )
+
+    def _kept(self, j: int, st: TouchState) -> bool:
+        spec, s = self.specs[j], self.settings
+        if spec is None:
+            return True
+        if spec.motion == "swipe" and (
+            st.straightness < s.keep_straightness or abs(st.turning) > s.keep_turn * 2 * math.pi
+        ):
+            return False
+        return not (st.major_sd > s.max_blob_sd_mm and spec.fingers < 5)
+
+    def step(
+        self, frame: np.ndarray, active: np.ndarray, touched: bool, probabilities: np.ndarray
+    ) -> np.ndarray:
+        """One frame of the tracking signal, its active mask and ``touched`` flag, and the
+        network's latest probabilities ``(K,)``; returns this frame's reading ``(K,)``."""
+        row = np.zeros(len(self.class_names), dtype=np.float32)
+        row[self.invalid] = 1.0
+        st = self.touch.step(frame, active, touched)
+        if st is None:
+            if self._count:
+                self.reset()
+            return row
+        self.state = st
+        p = np.asarray(probabilities, dtype=np.float64)[self.valid]
+        self._sum += p
+        self._count += 1
+        self._recent.append(p)
+        if len(self._recent) > self._smooth:
+            self._recent.pop(0)
+        self._peak = np.maximum(self._peak, np.mean(self._recent, axis=0))
+        mean = self._sum / self._count
+        score = np.log(mean / max(float(mean.sum()), _FLOOR) + _FLOOR) + self._geometry(st)
+        j = int(np.argmax(score))
+        if (j == self._held and self._kept(j, st)) or (
+            self._shows(j, st) and self._peak[j] >= self.settings.net_peak
+        ):
+            self._held = j
+            row[self.invalid] = 0.0
+            row[self.valid[j]] = 1.0
+            self.reading = self.class_names[self.valid[j]]
+        else:
+            self._held = None
+            self.reading = None
+        return row
+
+    def run(
+        self,
+        frames: np.ndarray,
+        active: np.ndarray,
+        touched: np.ndarray,
+        probabilities: np.ndarray,
+    ) -> np.ndarray:
+        """Many frames: ``(N, R, C)`` tracking frames and masks, ``(N,)`` flags and ``(N, K)``
+        network rows; returns ``(N, K)`` readings."""
+        n = frames.shape[0]
+        out = np.empty((n, len(self.class_names)), dtype=np.float32)
+        flags = np.asarray(touched, dtype=bool).reshape(-1)
+        for i in range(n):
+            out[i] = self.step(frames[i], active[i], bool(flags[i]), probabilities[i])
+        return out

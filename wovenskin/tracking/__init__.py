@@ -1,0 +1,1 @@
+"""Contact tracking: fingertips found in every conditioned frame and followed from landing to lift as tracks, and the touch they make up (finger count, motion, spread, turning, pressure)."""  # noqa: E501
