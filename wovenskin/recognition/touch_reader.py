@@ -17,9 +17,11 @@ the touch from its first contact to now instead, frame by frame and causally:
    a swipe ``min_travel_mm`` of straight coherent travel that has hardly turned, a circle
    ``min_turn`` turns, a pinch ``min_spread_mm`` of spread change with the right fingers,
    a push a pressure rise of ``press_ratio`` over ``press_span_s`` with no travel, at
-   least ``press_after_s`` into the touch (a landing ramps in faster).  And the network
-   must have given the gesture at least ``net_peak`` (smoothed over ``net_smoothing_s``)
-   at some window of the touch: geometry alone never starts a command.  A blob wider
+   least ``press_after_s`` into the touch (a landing ramps in faster; such a press also
+   adds ``press_evidence`` to push's score).  And the network must have given the gesture
+   at least ``net_peak`` (smoothed over ``net_smoothing_s``; ``press_net_peak`` for a push,
+   which the window sees poorly) at some window of the touch: geometry alone never starts
+   a command.  A blob wider
    than ``max_blob_sd_mm`` (a palm, a grasp, a forearm) is no one- or two-finger gesture.
 3. *Keeping it.*  Once a reading counts it is kept while it stays the best-scoring
    gesture, unless a swipe's path loses its straightness (``keep_straightness``) or turns
@@ -60,8 +62,8 @@ class ReaderSettings:
     min_travel_mm: float = 6.0
     min_straightness: float = 0.8
     max_swipe_turn: float = 0.1  # turns (0.2 pi)
-    keep_straightness: float = 0.4
-    keep_turn: float = 0.2
+    keep_straightness: float = 0.7
+    keep_turn: float = 0.15
     min_turn: float = 0.4
     min_spread_mm: float = 6.0
     five_finger_radius_mm: float = 18.0
@@ -70,6 +72,8 @@ class ReaderSettings:
     press_span_s: float = 0.1
     press_after_s: float = 0.15
     press_max_travel_mm: float = 4.0
+    press_evidence: float = 2.0  # log units a press adds to push
+    press_net_peak: float = 0.5  # the network's least peak for a push (it sees presses poorly)
     two_finger_sd_mm: float = 8.3
     finger_weight: float = 0.8  # evidence per mm of blob spread
     direction_mm: float = 5.0  # travel per unit of direction evidence
@@ -158,10 +162,21 @@ class TouchRecognizer:
                 out[j] += 4.0 * float(np.clip(sign * turns, -1.5, 1.5)) if abs(turns) > 0.15 else 0
             elif spec.motion == "press":
                 out[j] -= max(0.0, travel - 5.0) / 3.0 + max(0.0, two)
+                if self._presses(st):
+                    out[j] += s.press_evidence
             elif spec.motion == "pinch":
                 sign = -1.0 if spec.direction == "in" else 1.0
                 out[j] += float(np.clip(sign * st.spread_change / 4.0, -4.0, 4.0))
         return out
+
+    def _presses(self, st: TouchState) -> bool:
+        """The pressure rises with no travel, well after the landing."""
+        s = self.settings
+        return (
+            st.press_ratio >= s.press_ratio
+            and st.max_travel <= s.press_max_travel_mm
+            and st.age_s >= s.press_after_s
+        )
 
     def _shows(self, j: int, st: TouchState) -> bool:
         """The touch shows gesture ``j``'s motion (see the module doc)."""
@@ -179,12 +194,7 @@ class TouchRecognizer:
         if spec.motion == "circle":
             return abs(st.turning) >= s.min_turn * 2 * math.pi and not wide
         if spec.motion == "press":
-            return (
-                st.press_ratio >= s.press_ratio
-                and st.max_travel <= s.press_max_travel_mm
-                and st.age_s >= s.press_after_s
-                and not wide
-            )
+            return self._presses(st) and not wide
         if spec.fingers >= 5:
             return abs(st.spread_change) >= s.min_spread_mm and st.radius_max >= (
                 s.five_finger_radius_mm
@@ -228,8 +238,14 @@ class TouchRecognizer:
         mean = self._sum / self._count
         score = np.log(mean / max(float(mean.sum()), _FLOOR) + _FLOOR) + self._geometry(st)
         j = int(np.argmax(score))
+        spec = self.specs[j]
+        least = (
+            self.settings.press_net_peak
+            if spec is not None and spec.motion == "press"
+            else self.settings.net_peak
+        )
         if (j == self._held and self._kept(j, st)) or (
-            self._shows(j, st) and self._peak[j] >= self.settings.net_peak
+            self._shows(j, st) and self._peak[j] >= least
         ):
             self._held = j
             row[self.invalid] = 0.0

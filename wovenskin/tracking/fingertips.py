@@ -9,9 +9,10 @@ A *fingertip* is a local maximum of the signal inside a blob that stands out fro
 higher maximum of the same blob by a saddle: along the straight line between the two the
 signal dips below ``saddle_ratio`` times the lower peak.  Its position is refined to a
 fraction of a channel by fitting a parabola through the peak and its two neighbours on
-each axis.  Two fingertips closer than about two channel pitches share one peak; the
-tracker (:mod:`~wovenskin.tracking.tracker`) and the touch (:mod:`~wovenskin.tracking.touch`)
-tell them apart by the blob's shape and history.
+each axis.  Two fingertips closer than about two channel pitches share one peak: a blob
+with one peak whose body is shaped like a pair (long along its major axis, narrow across)
+gives two fingertips either side of its centroid (``split_*`` settings), and the tracker
+(:mod:`~wovenskin.tracking.tracker`) keeps their identities through the merge.
 
 Positions are millimetres from the centre of channel ``[0, 0]``: ``y`` down the rows,
 ``x`` along the columns (the skin layout of :mod:`wovenskin.skin.layout`).
@@ -36,10 +37,15 @@ class FingertipSettings:
     saddle_ratio: float = 0.75
     min_peak_fraction: float = 0.2  # of the frame's strongest signal
     grow_mask: bool = True
+    split_sd_mm: float = 10.0  # a one-peak blob this long along its major axis is two
+    split_elongation: float = 1.8  # ... and at least this much longer than wide
+    split_max_sd_mm: float = 14.5  # ... but no wider (a palm is not split)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.saddle_ratio <= 1.0:
             raise ConfigError(f"saddle_ratio must lie in (0, 1], got {self.saddle_ratio!r}")
+        if not (self.split_sd_mm >= 0 and self.split_elongation >= 1 and self.split_max_sd_mm >= 0):
+            raise ConfigError("split_sd_mm and split_max_sd_mm must be >= 0, split_elongation >= 1")
         if not 0.0 <= self.min_peak_fraction < 1.0:
             raise ConfigError(
                 f"min_peak_fraction must lie in [0, 1), got {self.min_peak_fraction!r}"
@@ -69,6 +75,12 @@ class FrameContacts:
     amplitude: np.ndarray  # (k,) peak signal
     blob: np.ndarray  # (k,) index into blobs
     blobs: tuple[Blob, ...]
+    peaks: int = -1  # the signal's distinct peaks (-1: as many as fingertips, none split)
+
+    @property
+    def peak_count(self) -> int:
+        """Distinct peaks of the signal (a split pair counts once)."""
+        return len(self) if self.peaks < 0 else self.peaks
 
     def __len__(self) -> int:
         return int(self.y.shape[0])
@@ -168,13 +180,47 @@ def find_fingertips(
     pc = np.array([k[1] for k in kept])
     padded = np.zeros((frame.shape[0] + 2, frame.shape[1] + 2))
     padded[1:-1, 1:-1] = frame
+    ys = (pr + _refine(padded, pr, pc, 0)) * row_pitch_mm
+    xs = (pc + _refine(padded, pr, pc, 1)) * col_pitch_mm
+    amps = frame[pr, pc]
+    which = labels[pr, pc].astype(np.int64) - 1
+    return _split_pairs(FrameContacts(ys, xs, amps, which, blobs), settings)
+
+
+def _split_pairs(contacts: FrameContacts, settings: FingertipSettings) -> FrameContacts:
+    """Two fingertips for every blob whose one peak sits in a body shaped like a pair:
+    longer than ``split_sd_mm`` along its major axis, ``split_elongation`` times longer
+    than wide, no wider than ``split_max_sd_mm``.  They lie on the major axis either side
+    of the blob's centroid, as far apart as the extra length says (the minor axis' spread
+    standing for one fingertip's own)."""
+    peaks = np.bincount(contacts.blob, minlength=len(contacts.blobs))
+    ys, xs, amps, which = [], [], [], []
+    for k in range(len(contacts)):
+        b = int(contacts.blob[k])
+        blob = contacts.blobs[b]
+        if (
+            peaks[b] == 1
+            and settings.split_sd_mm <= blob.major_sd <= settings.split_max_sd_mm
+            and blob.major_sd >= settings.split_elongation * blob.minor_sd
+        ):
+            half = float(np.sqrt(blob.major_sd**2 - blob.minor_sd**2))
+            dy, dx = half * np.sin(blob.angle), half * np.cos(blob.angle)
+            for sign in (-1.0, 1.0):
+                ys.append(blob.y + sign * dy)
+                xs.append(blob.x + sign * dx)
+                amps.append(contacts.amplitude[k])
+                which.append(b)
+            continue
+        ys.append(contacts.y[k])
+        xs.append(contacts.x[k])
+        amps.append(contacts.amplitude[k])
+        which.append(b)
+    if len(ys) == len(contacts):
+        return contacts
     return FrameContacts(
-        (pr + _refine(padded, pr, pc, 0)) * row_pitch_mm,
-        (pc + _refine(padded, pr, pc, 1)) * col_pitch_mm,
-        frame[pr, pc],
-        labels[pr, pc].astype(np.int64) - 1,
-        blobs,
-    )
+        np.array(ys), np.array(xs), np.array(amps), np.array(which, dtype=np.int64),
+        contacts.blobs, peaks=len(contacts),
+    )  # fmt: skip
 
 
 def _blobs(

@@ -10,17 +10,18 @@ signal, its active mask, the debounced ``touched`` flag) and keeps, for the curr
 - *coherent motion*: the centroid's displacement summed over *steady* frames only, those
   whose total strength changes by less than ``steady_rate`` per second.  A finger landing
   or lifting beside another moves the centroid by half their distance in a few frames;
-  those jumps are not motion (nor are the ``count_settle_s`` after the number of
-  fingertips changed), and leaving them out is what lets two fingers that land one
-  after the other swipe cleanly.  Beside the net displacement ``D`` it keeps the path
-  length ``L`` in steps of at least ``path_step_mm`` (straightness ``|D| / L``: a finger
-  rubbed back and forth has a long path and little displacement), the largest
-  displacement so far, and the spread's change summed the same way (a pinch);
-- *turning*: the signed angle the heading of the path's steps has turned through (the
-  path sampled in space, not time, so a slow finger's jitter does not turn; a step that
-  turns by more than ``max_step_turn_deg`` is a reversal, not part of a circle, and counts
-  nothing): about 2 pi a turn
-  for a circle, near 0 for a straight stroke.  Positive is clockwise as the user sees the
+  those jumps are not motion (nor are the ``count_settle_s`` after the signal shows more
+  peaks than ever before in the touch: a finger landing), and leaving them out is what
+  lets two fingers that land one after the other swipe cleanly.  Beside the net
+  displacement ``D`` it keeps the path length ``L`` in steps of at least
+  ``path_step_mm`` (straightness ``|D| / L``: a finger rubbed back and forth has a long
+  path and little displacement), the largest displacement so far, and the spread's
+  change summed the same way (a pinch);
+- *turning*: the signed angle the heading of the path's steps of ``turn_step_mm`` has
+  turned through (the path sampled in space, not time, so a slow finger's jitter does not
+  turn; a step that turns by more than ``max_step_turn_deg`` is a reversal, not part of a
+  circle, and counts nothing): about 2 pi a turn for a circle, near 0 for a straight
+  stroke.  Positive is clockwise as the user sees the
   skin (from +x toward +y, y pointing down);
 - *pressure*: the total strength now against ``press_span_s`` ago (a press rises, a
   landed finger holds steady);
@@ -28,7 +29,8 @@ signal, its active mask, the debounced ``touched`` flag) and keeps, for the curr
   that were present together for ``sustain_s``, and the mean spread of the strongest blob
   along its major axis over steady frames (two fingertips side by side make one blob
   half their distance longer than one fingertip does);
-- *size*: the most channels and blobs the touch has covered (a palm, a grasp).
+- *size*: the most channels and blobs the touch has covered (a palm, a grasp);
+- *tracks*: the fingertips followed with identities (:mod:`~wovenskin.tracking.tracker`).
 
 Everything is causal; a frame without ``touched`` ends the touch and resets the state.
 """
@@ -48,6 +50,7 @@ from wovenskin.tracking.fingertips import (
     find_fingertips,
     neighbourhood,
 )
+from wovenskin.tracking.tracker import ContactTracker, Track, TrackerSettings
 
 RELATIVE_FLOOR = 0.15
 """Share of a frame's peak below which a channel does not count toward the touch's
@@ -61,15 +64,19 @@ class TouchSettings:
 
     steady_rate: float = 30.0  # relative strength change per second still counted as steady
     path_step_mm: float = 2.0  # the path is measured in steps of at least this
-    max_step_turn_deg: float = 45.0  # a step turning more counts no turn (not a circle's)
+    turn_step_mm: float = 5.0  # the heading is taken over steps of at least this
+    max_step_turn_deg: float = 60.0  # a step turning more counts no turn (not a circle's)
     press_span_s: float = 0.1
     sustain_s: float = 0.02
     settle_s: float = 0.02  # frames after the first contact left out of the blob spread
-    count_settle_s: float = 0.03  # frames after the fingertip count changed: not steady
+    count_settle_s: float = 0.03  # after more peaks than ever in the touch: not steady
     fingertips: FingertipSettings = field(default_factory=FingertipSettings)
+    tracker: TrackerSettings = field(default_factory=TrackerSettings)
 
     def __post_init__(self) -> None:
-        for name in ("steady_rate", "path_step_mm", "max_step_turn_deg", "press_span_s"):
+        for name in (
+            "steady_rate", "path_step_mm", "turn_step_mm", "max_step_turn_deg", "press_span_s"
+        ):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value!r}")
@@ -108,6 +115,8 @@ class TouchState:
     max_channels: int = 0
     max_blobs: int = 0
     contacts: FrameContacts | None = None
+    tracks: list[Track] = field(default_factory=list)  # the fingertips' tracks now
+    max_tracks: int = 0  # most tracks (merged ones too) present together
 
     @property
     def travel(self) -> float:
@@ -154,19 +163,22 @@ class TouchReader:
         self._y_mm = np.arange(rows, dtype=np.float64)[:, None] * row_pitch_mm
         self._x_mm = np.arange(cols, dtype=np.float64)[None, :] * col_pitch_mm
         self.state = TouchState()
+        self.tracker = ContactTracker(self.rate, self.settings.tracker)
         self.reset()
 
     def reset(self) -> None:
         """Forget the current touch."""
         self.state = TouchState()
+        self.tracker.reset()
         self._prev: tuple[float, float, float, float] | None = None  # y, x, radius, strength
         self._strengths: deque[float] = deque(maxlen=self._press_span + 1)
         self._heading: tuple[float, float] | None = None
         self._runs: dict[int, int] = {}
         self._major_sum = 0.0
         self._major_n = 0
-        self._prev_count = 0
+        self._most_peaks = 0
         self._anchor = (0.0, 0.0)
+        self._turn_anchor = (0.0, 0.0)
         self._unsettled = 0
 
     def step(self, frame: np.ndarray, active: np.ndarray, touched: bool) -> TouchState | None:
@@ -189,6 +201,7 @@ class TouchReader:
             self._strengths.append(0.0)
             st.contacts = None
             st.fingertips = 0
+            st.tracks = self.tracker.step(None)
             self._prev = None
             return st
         y = float((weights * self._y_mm).sum() / total)
@@ -204,7 +217,7 @@ class TouchReader:
             py, px, pr, ps = self._prev
             larger = max(strength, ps)
             steady = larger > 0 and abs(strength - ps) <= self._steady_step * larger
-            if len(contacts) != self._prev_count:
+            if contacts.peak_count > self._most_peaks:  # a finger more than ever: landing
                 self._unsettled = self._settle_frames
             elif self._unsettled > 0:
                 self._unsettled -= 1
@@ -219,13 +232,18 @@ class TouchReader:
                 if step >= self.settings.path_step_mm:
                     st.path += step
                     self._anchor = (y, x)
-                    self._turn(y - ay, x - ax)
-            else:  # a jump is no motion: the path's anchor moves with it
+                ty, tx = self._turn_anchor
+                if math.hypot(y - ty, x - tx) >= self.settings.turn_step_mm:
+                    self._turn(y - ty, x - tx)
+                    self._turn_anchor = (y, x)
+            else:  # a jump is no motion: the path's anchors move with it
                 ay, ax = self._anchor
                 self._anchor = (ay + y - py, ax + x - px)
-                self._heading = None
+                ty, tx = self._turn_anchor
+                self._turn_anchor = (ty + y - py, tx + x - px)
         else:
             self._anchor = (y, x)
+            self._turn_anchor = (y, x)
         if steady or self._prev is None:
             st.radius_min = min(st.radius_min, radius)
             st.radius_max = max(st.radius_max, radius)
@@ -238,7 +256,9 @@ class TouchReader:
             st.press_ratio = strength / before if before > 0 else 1.0
             st.max_press_ratio = max(st.max_press_ratio, st.press_ratio)
         st.contacts = contacts
-        self._prev_count = len(contacts)
+        st.tracks = self.tracker.step(contacts)
+        st.max_tracks = max(st.max_tracks, len(st.tracks))
+        self._most_peaks = max(self._most_peaks, contacts.peak_count)
         self._fingers(contacts, steady)
         st.max_channels = max(st.max_channels, int(active.sum()))
         st.max_blobs = max(st.max_blobs, len(contacts.blobs))
