@@ -121,9 +121,12 @@ def test_any_split_into_calls_and_step_give_the_same_commands(seed, cuts, every)
 
 
 def test_the_shipped_model_recommends_smoothing_and_overrides_win() -> None:
+    """Read window by window, the shipped model's windows are smoothed; its touch reader's
+    readings already stand for the whole touch and are not."""
     from wovenskin.recognition.pipeline import arbiter_settings_for_model, load_recognizer
 
     recognizer = load_recognizer(None)
-    recommended = arbiter_settings_for_model(recognizer)
+    recommended = arbiter_settings_for_model(recognizer, "window")
     assert recommended.smoothing_s is not None and 0.0 < recommended.smoothing_s <= 0.1
-    assert arbiter_settings_for_model(recognizer, smoothing_s=0.02).smoothing_s == 0.02
+    assert arbiter_settings_for_model(recognizer, "window", smoothing_s=0.02).smoothing_s == 0.02
+    assert arbiter_settings_for_model(recognizer).smoothing_s is None  # the touch reader

@@ -32,6 +32,7 @@ from scipy.optimize import linear_sum_assignment
 from wovenskin.bench.results import BenchResult
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import GESTURES
+from wovenskin.recognition.pipeline import conditioning_for_model, load_recognizer
 from wovenskin.signal.conditioner import LiveConditioner
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.sim.performances import perform
@@ -165,8 +166,6 @@ def run_tracking_benchmark(
     if trials < 1:
         raise ConfigError(f"--trials must be at least 1, got {trials}")
     if config is None:
-        from wovenskin.recognition.pipeline import conditioning_for_model, load_recognizer
-
         config = conditioning_for_model(load_recognizer())
     names = list(gestures) if gestures else [g.name for g in GESTURES]
     started = time.perf_counter()

@@ -90,6 +90,24 @@ def bench_detection(
         console.print(f"weak event: seed {seed} {label} touched {frac:.2f} peak {snr:.0f} x noise")
 
 
+@bench_app.command("tracking")
+@user_errors
+def bench_tracking(
+    trials: int = typer.Option(None, help="Simulated performances per gesture (default 3)."),
+    seed: int = typer.Option(None, help="Base seed of the trials (default 31000)."),
+    json_out: bool = JSON_OUT,
+) -> None:
+    """Contact tracks against the simulator's ground-truth fingertips: count, position, identity."""
+    from wovenskin.bench.tracking import run_tracking_benchmark
+
+    with err_console.status("bench tracking...") as status:
+        result = run_tracking_benchmark(
+            progress=lambda what: status.update(f"bench tracking: {what}"),
+            **given(trials=trials, seed=seed),  # unset: bench/tracking.py's defaults
+        )
+    show_bench(result, json_out)
+
+
 # ----------------------------------------------------------------- recognition: data, models
 
 

@@ -310,7 +310,9 @@ class LivePipeline:
             ended = self.reset(float(np.asarray(block.t).reshape(-1)[0]))
             if ended is not None:
                 changes.append(ended)
-        changes += self.process(block.t, cond.signal, cond.active, cond.touched, cond.fast)
+        changes += self.process(
+            block.t, cond.signal, cond.active, cond.touched, getattr(cond, "fast", None)
+        )
         if len(index):
             self._next_index = int(index[-1]) + 1
         return changes
