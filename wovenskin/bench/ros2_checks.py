@@ -133,6 +133,15 @@ def wire_report(
     report.twists = len(twists)
     tick_t, tick_clock, _ = session_ticks(recording)
     offset = float(np.median(tick_clock - tick_t))  # receiver's monotonic s = stream s + offset
+    order = np.argsort(tick_clock, kind="stable")
+    clock_sorted, t_by_clock = tick_clock[order], tick_t[order]
+
+    def sent_at(mono: float) -> float:
+        """The stream time of the latest tick before a twist's receipt: the tick that sent it
+        (a session that fell behind real time during a touch keeps its own ticks' times)."""
+        k = int(np.searchsorted(clock_sorted, mono, side="right")) - 1
+        return float(t_by_clock[k]) if k >= 0 else mono - offset
+
     commands = session_commands(recording)
     received_mono = np.array([r["mono_ns"] * 1e-9 for r in twists])
     if len(received_mono) > 1:
@@ -155,7 +164,7 @@ def wire_report(
         if frame != chain.base_link:
             rotation = chain.link_pose(q, frame)[:3, :3]
             twist = np.concatenate([rotation @ twist[:3], rotation @ twist[3:]])
-        _classify(report, twist, mono - offset, q, commands, chain, mapping)
+        _classify(report, twist, sent_at(float(mono)), q, commands, chain, mapping)
     _lift_offs(report, commands, tick_t, tick_clock, received_mono, twists, true_lifts_s)
     return report
 

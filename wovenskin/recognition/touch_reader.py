@@ -36,6 +36,7 @@ the fingers are performed, lift-off ends it, flicks.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -129,6 +130,23 @@ class TouchRecognizer:
         self.valid = np.array([i for i, c in enumerate(self.class_names) if c != INVALID])
         self.specs = [SPECS.get(self.class_names[i]) for i in self.valid]
         self.touch = TouchReader(rows, cols, row_pitch_mm, col_pitch_mm, sample_rate_hz, touch)
+        motions = np.array([None if spec is None else spec.motion for spec in self.specs])
+        fingers = np.array([0 if spec is None else spec.fingers for spec in self.specs])
+        self._kinds = {
+            "swipe": motions == "swipe",
+            "swipe1": (motions == "swipe") & (fingers == 1),
+            "swipe2": (motions == "swipe") & (fingers == 2),
+            "circle": motions == "circle",
+            "press": motions == "press",
+            "pinch": motions == "pinch",
+        }
+        self._angles = np.array(
+            [_ANGLE.get(spec.direction, 0.0) if spec else 0.0 for spec in self.specs]
+        )
+        self._signs = np.array(
+            [(-1.0 if spec.direction in ("ccw", "in") else 1.0) if spec else 0.0
+             for spec in self.specs]
+        )  # fmt: skip
         self._smooth = max(1, int(round(self.settings.net_smoothing_s * sample_rate_hz)))
         self.reset()
 
@@ -137,36 +155,31 @@ class TouchRecognizer:
         self.touch.reset()
         self._sum = np.zeros(len(self.valid))
         self._count = 0
-        self._recent: list[np.ndarray] = []
+        self._recent: deque[np.ndarray] = deque()
+        self._recent_sum = np.zeros(len(self.valid))
         self._peak = np.zeros(len(self.valid))
         self._held: int | None = None
         self.reading: str | None = None
         self.state: TouchState | None = None
 
     def _geometry(self, st: TouchState) -> np.ndarray:
-        s = self.settings
-        out = np.zeros(len(self.valid))
+        """Each valid class's log evidence from the touch's geometry (see the module doc)."""
+        s, k = self.settings, self._kinds
         travel = st.travel
-        angle = math.atan2(st.dy, st.dx)
         kappa = min(travel / s.direction_mm, 6.0) if travel >= 3.0 else 0.0
         two = _finger_evidence(st, s)
+        out = np.zeros(len(self.valid))
+        if kappa:
+            angle = math.atan2(st.dy, st.dx)
+            out[k["swipe"]] += kappa * (np.cos(angle - self._angles[k["swipe"]]) - 1.0)
+        out[k["swipe2"]] += min(0.0, two)
+        out[k["swipe1"]] += min(0.0, -two)
         turns = st.turning / (2 * math.pi)
-        for j, spec in enumerate(self.specs):
-            if spec is None:
-                continue
-            if spec.motion == "swipe":
-                out[j] += kappa * (math.cos(angle - _ANGLE[spec.direction]) - 1.0)
-                out[j] += min(0.0, two) if spec.fingers == 2 else min(0.0, -two)
-            elif spec.motion == "circle":
-                sign = 1.0 if spec.direction == "cw" else -1.0
-                out[j] += 4.0 * float(np.clip(sign * turns, -1.5, 1.5)) if abs(turns) > 0.15 else 0
-            elif spec.motion == "press":
-                out[j] -= max(0.0, travel - 5.0) / 3.0 + max(0.0, two)
-                if self._presses(st):
-                    out[j] += s.press_evidence
-            elif spec.motion == "pinch":
-                sign = -1.0 if spec.direction == "in" else 1.0
-                out[j] += float(np.clip(sign * st.spread_change / 4.0, -4.0, 4.0))
+        if abs(turns) > 0.15:
+            out[k["circle"]] += 4.0 * np.clip(self._signs[k["circle"]] * turns, -1.5, 1.5)
+        press = -(max(0.0, travel - 5.0) / 3.0 + max(0.0, two))
+        out[k["press"]] += press + (s.press_evidence if self._presses(st) else 0.0)
+        out[k["pinch"]] += np.clip(self._signs[k["pinch"]] * st.spread_change / 4.0, -4.0, 4.0)
         return out
 
     def _presses(self, st: TouchState) -> bool:
@@ -232,9 +245,10 @@ class TouchRecognizer:
         self._sum += p
         self._count += 1
         self._recent.append(p)
+        self._recent_sum += p
         if len(self._recent) > self._smooth:
-            self._recent.pop(0)
-        self._peak = np.maximum(self._peak, np.mean(self._recent, axis=0))
+            self._recent_sum -= self._recent.popleft()
+        self._peak = np.maximum(self._peak, self._recent_sum / len(self._recent))
         mean = self._sum / self._count
         score = np.log(mean / max(float(mean.sum()), _FLOOR) + _FLOOR) + self._geometry(st)
         j = int(np.argmax(score))
