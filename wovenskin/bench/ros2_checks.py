@@ -10,7 +10,8 @@ commanded twist and the backend's clock ``robot_t``). Both processes read the sa
   ``geometry_msgs/msg/TwistStamped`` and give the values the stand-in read;
 - **stamps**: receive time minus header stamp, both on the system clock;
 - **when**: a moving twist is sent only while a command acts (from its activation to its
-  end, plus the nudge that completes a flick shorter than the mapping's minimum);
+  end, plus the nudge that completes a flick shorter than the mapping's minimum), placed
+  by its stamp at the tick that sent it;
 - **where**: a moving twist points along the mapped axis of the acting gesture, at the
   arm's pose when it arrived (cosine of the 6-vectors);
 - **lift-off**: from the tick that ended a command on lift-off to the first zero twist
@@ -136,17 +137,21 @@ def wire_report(
     order = np.argsort(tick_clock, kind="stable")
     clock_sorted, t_by_clock = tick_clock[order], tick_t[order]
 
-    def sent_at(mono: float) -> float:
-        """The stream time of the latest tick before a twist's receipt: the tick that sent it
-        (a session that fell behind real time during a touch keeps its own ticks' times)."""
-        k = int(np.searchsorted(clock_sorted, mono, side="right")) - 1
-        return float(t_by_clock[k]) if k >= 0 else mono - offset
+    def sent_at(record: dict[str, Any]) -> float:
+        """The stream time of the tick that sent a twist: the first tick whose backend
+        clock is at or after the twist's stamp (a tick publishes, then reads the robot).
+        The stamp is on the system clock; the receiver's pair of clocks at receipt turns it
+        into the monotonic one. Receipt time would not do: on a loaded machine a twist can
+        arrive several ticks later, while a session that fell behind real time catches up."""
+        mono = (record["stamp_ns"] - (record["wall_ns"] - record["mono_ns"])) * 1e-9
+        k = int(np.searchsorted(clock_sorted, mono, side="left"))
+        return float(t_by_clock[k]) if k < len(t_by_clock) else mono - offset
 
     commands = session_commands(recording)
     received_mono = np.array([r["mono_ns"] * 1e-9 for r in twists])
     if len(received_mono) > 1:
         report.rate_hz = (len(received_mono) - 1) / float(received_mono[-1] - received_mono[0])
-    for record, mono in zip(twists, received_mono, strict=True):
+    for record in twists:
         message = typestore.deserialize_cdr(
             bytes.fromhex(record["cdr"]), "geometry_msgs/msg/TwistStamped"
         )
@@ -164,7 +169,7 @@ def wire_report(
         if frame != chain.base_link:
             rotation = chain.link_pose(q, frame)[:3, :3]
             twist = np.concatenate([rotation @ twist[:3], rotation @ twist[3:]])
-        _classify(report, twist, sent_at(float(mono)), q, commands, chain, mapping)
+        _classify(report, twist, sent_at(record), q, commands, chain, mapping)
     _lift_offs(report, commands, tick_t, tick_clock, received_mono, twists, true_lifts_s)
     return report
 
