@@ -63,6 +63,7 @@ from wovenskin.signal.conditioner import LiveConditioner
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.signal.live_skin import LiveBlock
 from wovenskin.skin.layout import check_supported
+from wovenskin.tracking.tracker import Track
 
 RESET = "reset"
 """Reason of the change that ends an active command when the pipeline is reset."""
@@ -280,6 +281,12 @@ class LivePipeline:
     def latest_probabilities(self) -> np.ndarray:
         """``(K,)`` probabilities of the latest window, columns in :attr:`class_names` order."""
         return self.streaming.latest_probabilities
+
+    def tracks(self) -> list[Track]:
+        """The live contact tracks after the latest frame fed (positions in mm from the
+        centre of channel ``[0, 0]``); empty when the window reader runs, which tracks
+        nothing."""
+        return [] if self.touch is None else self.touch.tracks
 
     def latest_top(self) -> tuple[str, float]:
         """The most probable class of the latest window and its probability."""

@@ -45,6 +45,7 @@ import numpy as np
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import INVALID, SPECS
 from wovenskin.tracking.touch import TouchReader, TouchSettings, TouchState
+from wovenskin.tracking.tracker import Track
 
 TOUCH = "touch"
 WINDOW = "window"
@@ -269,6 +270,11 @@ class TouchRecognizer:
             self._held = None
             self.reading = None
         return row
+
+    @property
+    def tracks(self) -> list[Track]:
+        """The live contact tracks of the current touch (empty between touches)."""
+        return list(self.touch.tracker.tracks)
 
     def run(
         self,
