@@ -9,6 +9,7 @@ package imports only from lower layers):
 - :mod:`wovenskin.signal` -- calibration, baseline tracking, filtering, contacts, lift-off;
 - :mod:`wovenskin.tracking` -- fingertips followed from landing to lift, the touch so far;
 - :mod:`wovenskin.sim` -- the physically motivated simulated skin and simulated people;
+- :mod:`wovenskin.independent` -- a second stream generator made apart from ``sim``;
 - :mod:`wovenskin.recognition` -- the live recogniser (ONNX Runtime) and the execution rules;
 - :mod:`wovenskin.robots` -- the robot interface and one folder per arm (sim, techman, ur, ros2);
 - :mod:`wovenskin.tasks` -- the user study's scenes on the simulated arm;

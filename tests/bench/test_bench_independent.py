@@ -1,4 +1,4 @@
-"""The independent stream generator (wovenskin.bench.independent) and `bench gestures`."""
+"""The independent stream generator (wovenskin.independent) and `bench gestures`."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ from module_graph import import_graph
 from typer.testing import CliRunner
 
 from wovenskin.bench.gesture_motion import analyse_ticks
-from wovenskin.bench.independent import gesture_stream, mixed_stream
-from wovenskin.bench.independent.invalid import INVALID_KINDS
-from wovenskin.bench.independent.streams import HELD_S, Request, render_stream
+from wovenskin.independent import gesture_stream, mixed_stream
+from wovenskin.independent.invalid import INVALID_KINDS
+from wovenskin.independent.streams import HELD_S, Request, render_stream
 from wovenskin.cli import app
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import CLASS_NAMES, GESTURE_NAMES, INVALID
@@ -40,7 +40,7 @@ def everything():
 
 def test_no_module_of_the_generator_reaches_the_simulator():
     graph = import_graph()
-    mine = [m for m in graph if m.startswith("wovenskin.bench.independent")]
+    mine = [m for m in graph if m.startswith("wovenskin.independent")]
     assert len(mine) >= 7
     seen, todo = set(), list(mine)
     while todo:  # everything the generator imports, directly or through other modules
@@ -64,7 +64,7 @@ def test_a_mixed_stream_has_the_labelled_stream_shape():
     assert np.all(stream.event_start_s[1:] > stream.event_end_s[:-1])  # no overlaps
     assert stream.event_start_s[0] >= 1.2 and stream.event_end_s[-1] <= 40.0 - 2.0
     assert set(stream.event_labels) <= set(CLASS_NAMES)
-    assert stream.metadata["generator"] == "wovenskin.bench.independent"
+    assert stream.metadata["generator"] == "wovenskin.independent"
 
 
 def test_the_same_seed_gives_the_same_stream():

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from paths import REPO
 
-from wovenskin.bench.independent.skins import GAIN_RANGE, TYPICAL_GAIN, WEAK_GAIN
-from wovenskin.bench.independent.streams import (
+from wovenskin.independent.skins import GAIN_RANGE, TYPICAL_GAIN, WEAK_GAIN
+from wovenskin.independent.streams import (
     Request,
     gesture_stream,
     mixed_stream,

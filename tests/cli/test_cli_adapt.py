@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from wovenskin.bench.independent.streams import render_stream
+from wovenskin.independent.streams import render_stream
 from wovenskin.cli import app
 from wovenskin.custom_gestures import CustomGesture
 from wovenskin.recording.formats import write_labelled_stream

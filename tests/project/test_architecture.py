@@ -67,7 +67,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("skin",),
     ("recording", "signal"),
     ("tracking",),  # fingertips followed as tracks, the touch so far
-    ("sim", "recognition"),
+    ("sim", "independent", "recognition"),  # independent: people and skins apart from sim
     ("robots",),
     ("tasks",),  # study task scenes on the simulated arm
     ("control", "training"),

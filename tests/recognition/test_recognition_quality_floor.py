@@ -4,7 +4,7 @@ The shipped default model (``load_recognizer()``) runs through the whole pipelin
 (calibration, conditioning, recogniser, arbiter: ``run_pipeline``, scored by
 ``score_stream``), exactly as ``wovenskin eval-stream`` scores a stream, on a few short
 streams of fixed seeds from both generators: the simulator the model was trained on
-(``simulate_stream``) and the independent one (``wovenskin.bench.independent``).
+(``simulate_stream``) and the independent one (``wovenskin.independent``).
 Everything is deterministic (fixed seeds, ONNX Runtime on one thread); nothing is timed.
 
 Both readers are held to a floor: the shipped touch reader and the paper's window reader.
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import pytest
 
-from wovenskin.bench.independent.streams import mixed_stream
+from wovenskin.independent.streams import mixed_stream
 from wovenskin.recognition.event_scoring import EventScores, aggregate, score_stream
 from wovenskin.recognition.pipeline import (
     load_recognizer,

@@ -1,7 +1,7 @@
 """``wovenskin bench adapt``: a person the model never saw, before and after ``adapt``.
 
 Issue 23's measure of :mod:`wovenskin.training.adapt`.  For each of ``people`` people,
-drawn with their skin by the independent generator (:mod:`wovenskin.bench.independent`,
+drawn with their skin by the independent generator (:mod:`wovenskin.independent`,
 made apart from the simulator that trained the shipped model; a *weak* skin responds with
 a fifth of a typical skin's change):
 
@@ -28,8 +28,8 @@ from typing import Any
 
 from rich.table import Table
 
-from wovenskin.bench.independent import mixed_stream
-from wovenskin.bench.independent.skins import WEAK_GAIN
+from wovenskin.independent import mixed_stream
+from wovenskin.independent.skins import WEAK_GAIN
 from wovenskin.bench.results import BenchResult
 from wovenskin.custom_gestures import CustomGesture
 from wovenskin.gestures import GESTURE_NAMES

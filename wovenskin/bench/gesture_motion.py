@@ -1,6 +1,6 @@
 """What single independent gestures make the simulated TM5-900 do (``wovenskin bench gestures``).
 
-Each stream of :func:`wovenskin.bench.independent.gesture_stream` (one flick or one held
+Each stream of :func:`wovenskin.independent.gesture_stream` (one flick or one held
 swipe on its own person and skin) runs through a full
 :class:`~wovenskin.control.session.ControlSession` (:func:`wovenskin.runtime.session.open_session`:
 replayed as fast as possible into the simulated arm with the default mapping, its clock
@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from wovenskin.bench.independent import gesture_stream
+from wovenskin.independent import gesture_stream
 from wovenskin.bench.stops import STOP_REST_ANGULAR_RAD_S, STOP_REST_LINEAR_M_S
 from wovenskin.control.mapping import MotionSettings
 from wovenskin.control.session import ControlSession

@@ -1,7 +1,7 @@
 """``wovenskin bench gestures``: recognition and motion on independent labelled streams.
 
 Issue 22: measured on people and skins made apart from :mod:`wovenskin.sim` (the
-simulator that trained the shipped model), by :mod:`wovenskin.bench.independent`.
+simulator that trained the shipped model), by :mod:`wovenskin.independent`.
 
 - *Recognition:* ``streams`` mixed streams of ``seconds`` each (seeds ``seed``,
   ``seed + 1``, ...) through the whole live pipeline
@@ -28,7 +28,7 @@ from rich.console import Group
 from rich.table import Table
 
 from wovenskin.bench.gesture_motion import GestureMotion, run_motion, summarise
-from wovenskin.bench.independent import mixed_stream
+from wovenskin.independent import mixed_stream
 from wovenskin.bench.results import BenchResult, figure_table
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import INVALID

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from wovenskin.bench.independent.performers import Trial
-from wovenskin.bench.independent.tracks import (
+from wovenskin.independent.performers import Trial
+from wovenskin.independent.tracks import (
     EDGE_MARGIN_MM,
     Finger,
     Phases,

@@ -32,19 +32,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from wovenskin.bench.independent.invalid import INVALID_KINDS, perform_invalid
-from wovenskin.bench.independent.people import Person
-from wovenskin.bench.independent.performers import DIRECTIONS, Trial, perform, push, swipe
-from wovenskin.bench.independent.skins import Skin, SkinRenderer
-from wovenskin.bench.independent.strokes import perform_strokes
-from wovenskin.bench.independent.tracks import Touch
+from wovenskin.independent.invalid import INVALID_KINDS, perform_invalid
+from wovenskin.independent.people import Person
+from wovenskin.independent.performers import DIRECTIONS, Trial, perform, push, swipe
+from wovenskin.independent.skins import Skin, SkinRenderer
+from wovenskin.independent.strokes import perform_strokes
+from wovenskin.independent.tracks import Touch
 from wovenskin.custom_gestures import CustomGesture
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import GESTURE_NAMES, INVALID
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
 
-GENERATOR = "wovenskin.bench.independent"
+GENERATOR = "wovenskin.independent"
 HELD_S = 2.5
 """How long a held swipe's finger stays still after the motion by default (s)."""
 LEAD_S = (1.2, 2.0)

@@ -1,6 +1,6 @@
 """The 14 gestures of ``docs/gestures.md`` as the independent generator's people make them.
 
-Each performer returns a :class:`~wovenskin.bench.independent.tracks.Touch` placed on the
+Each performer returns a :class:`~wovenskin.independent.tracks.Touch` placed on the
 skin, its frame 0 the first finger's landing.  Straight from the gesture table:
 
 - one-finger swipes travel 35-90 mm toward their edge with a minimum-jerk profile at a
@@ -24,8 +24,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from wovenskin.bench.independent.people import Person, log_uniform
-from wovenskin.bench.independent.tracks import (
+from wovenskin.independent.people import Person, log_uniform
+from wovenskin.independent.tracks import (
     Finger,
     Phases,
     Touch,

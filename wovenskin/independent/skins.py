@@ -32,8 +32,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.special import erf
 
-from wovenskin.bench.independent.people import log_uniform
-from wovenskin.bench.independent.tracks import Finger
+from wovenskin.independent.people import log_uniform
+from wovenskin.independent.tracks import Finger
 from wovenskin.skin.layout import SkinLayout
 
 PATCH_BLOBS = 5

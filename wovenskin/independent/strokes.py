@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from wovenskin.bench.independent.people import log_uniform
-from wovenskin.bench.independent.performers import Trial
-from wovenskin.bench.independent.tracks import (
+from wovenskin.independent.people import log_uniform
+from wovenskin.independent.performers import Trial
+from wovenskin.independent.tracks import (
     Finger,
     Phases,
     Touch,

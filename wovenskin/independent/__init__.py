@@ -12,8 +12,8 @@ user's custom gestures) and its own stream assembly (:mod:`.streams`).  It never
 
 from __future__ import annotations
 
-from wovenskin.bench.independent.skins import TYPICAL_GAIN, WEAK_GAIN
-from wovenskin.bench.independent.streams import (
+from wovenskin.independent.skins import TYPICAL_GAIN, WEAK_GAIN
+from wovenskin.independent.streams import (
     GENERATOR,
     gesture_stream,
     mixed_stream,
