@@ -10,12 +10,12 @@ from module_graph import import_graph
 from typer.testing import CliRunner
 
 from wovenskin.bench.gesture_motion import analyse_ticks
-from wovenskin.independent import gesture_stream, mixed_stream
-from wovenskin.independent.invalid import INVALID_KINDS
-from wovenskin.independent.streams import HELD_S, Request, render_stream
 from wovenskin.cli import app
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import CLASS_NAMES, GESTURE_NAMES, INVALID
+from wovenskin.independent import gesture_stream, mixed_stream
+from wovenskin.independent.invalid import INVALID_KINDS
+from wovenskin.independent.streams import HELD_S, Request, render_stream
 from wovenskin.recognition.event_scoring import motion_starts
 from wovenskin.recording.formats import read_labelled_stream, write_labelled_stream
 from wovenskin.skin.layout import SkinLayout

@@ -10,6 +10,9 @@ import numpy as np
 import pytest
 from paths import REPO
 
+from wovenskin.control.mapping import ActionMapping
+from wovenskin.custom_gestures import CustomGesture
+from wovenskin.errors import ConfigError
 from wovenskin.independent.skins import GAIN_RANGE, TYPICAL_GAIN, WEAK_GAIN
 from wovenskin.independent.streams import (
     Request,
@@ -19,9 +22,6 @@ from wovenskin.independent.streams import (
     render_stream,
     skin_of,
 )
-from wovenskin.control.mapping import ActionMapping
-from wovenskin.custom_gestures import CustomGesture
-from wovenskin.errors import ConfigError
 from wovenskin.recognition.event_scoring import motion_starts
 
 EXAMPLE = REPO / "examples" / "custom_gestures.toml"

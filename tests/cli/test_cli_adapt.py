@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from wovenskin.independent.streams import render_stream
 from wovenskin.cli import app
 from wovenskin.custom_gestures import CustomGesture
+from wovenskin.independent.streams import render_stream
 from wovenskin.recording.formats import write_labelled_stream
 
 pytestmark = pytest.mark.slow  # fine-tunes models: a learning test, left out of `make test-fast`

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from tests.touch_synth import COLS, CP, RATE, ROWS, RP, active_of, frame_of
-from wovenskin.independent import mixed_stream
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import CLASS_NAMES, INVALID
+from wovenskin.independent import mixed_stream
 from wovenskin.recognition.pipeline import (
     PipelineSettings,
     load_recognizer,

@@ -28,11 +28,11 @@ from typing import Any
 
 from rich.table import Table
 
-from wovenskin.independent import mixed_stream
-from wovenskin.independent.skins import WEAK_GAIN
 from wovenskin.bench.results import BenchResult
 from wovenskin.custom_gestures import CustomGesture
 from wovenskin.gestures import GESTURE_NAMES
+from wovenskin.independent import mixed_stream
+from wovenskin.independent.skins import WEAK_GAIN
 from wovenskin.recognition.event_scoring import EventScores, aggregate, score_stream
 from wovenskin.recognition.pipeline import (
     load_recognizer,

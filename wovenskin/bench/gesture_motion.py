@@ -30,10 +30,10 @@ from typing import Any
 
 import numpy as np
 
-from wovenskin.independent import gesture_stream
 from wovenskin.bench.stops import STOP_REST_ANGULAR_RAD_S, STOP_REST_LINEAR_M_S
 from wovenskin.control.mapping import MotionSettings
 from wovenskin.control.session import ControlSession
+from wovenskin.independent import gesture_stream
 from wovenskin.recognition.pipeline import PipelineSettings
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.runtime.session import open_session

@@ -28,10 +28,10 @@ from rich.console import Group
 from rich.table import Table
 
 from wovenskin.bench.gesture_motion import GestureMotion, run_motion, summarise
-from wovenskin.independent import mixed_stream
 from wovenskin.bench.results import BenchResult, figure_table
 from wovenskin.errors import ConfigError
 from wovenskin.gestures import INVALID
+from wovenskin.independent import mixed_stream
 from wovenskin.io import to_jsonable
 from wovenskin.recognition.event_scoring import EventScores, aggregate, score_commands, score_stream
 from wovenskin.recognition.pipeline import (

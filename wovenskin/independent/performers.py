@@ -24,6 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from wovenskin.errors import ConfigError
 from wovenskin.independent.people import Person, log_uniform
 from wovenskin.independent.tracks import (
     Finger,
@@ -36,7 +37,6 @@ from wovenskin.independent.tracks import (
     raised_cosine,
     wander,
 )
-from wovenskin.errors import ConfigError
 from wovenskin.skin.layout import SkinLayout
 
 DIRECTIONS: dict[str, tuple[float, float]] = {

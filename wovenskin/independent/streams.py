@@ -32,15 +32,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from wovenskin.custom_gestures import CustomGesture
+from wovenskin.errors import ConfigError
+from wovenskin.gestures import GESTURE_NAMES, INVALID
 from wovenskin.independent.invalid import INVALID_KINDS, perform_invalid
 from wovenskin.independent.people import Person
 from wovenskin.independent.performers import DIRECTIONS, Trial, perform, push, swipe
 from wovenskin.independent.skins import Skin, SkinRenderer
 from wovenskin.independent.strokes import perform_strokes
 from wovenskin.independent.tracks import Touch
-from wovenskin.custom_gestures import CustomGesture
-from wovenskin.errors import ConfigError
-from wovenskin.gestures import GESTURE_NAMES, INVALID
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
 

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from wovenskin.custom_gestures import CustomGesture
+from wovenskin.errors import ConfigError
 from wovenskin.independent.people import log_uniform
 from wovenskin.independent.performers import Trial
 from wovenskin.independent.tracks import (
@@ -32,8 +34,6 @@ from wovenskin.independent.tracks import (
     frame_times,
     min_jerk,
 )
-from wovenskin.custom_gestures import CustomGesture
-from wovenskin.errors import ConfigError
 from wovenskin.skin.layout import SkinLayout
 
 TAP_DOWN_S = (0.03, 0.16)
