@@ -2,7 +2,8 @@
 
 Run: ``.venv/bin/python examples/incidental_contact.py [SEED ...]`` (default seeds 900 901).
 For each seed it renders 120 s of invalid touches only from both generators -- the
-independent one (palms, taps, grasps, brushes: ``wovenskin.independent``) and the
+independent one (palms, taps, grasps, brushes, rubs, scribbles, three-finger slides,
+four-finger rests: ``wovenskin.independent``) and the
 simulator (those plus scribbles, three- and four-finger touches, forearms, noise bursts:
 ``wovenskin.sim``) -- runs the shipped model through the live pipeline with each reader
 and prints every command (each one a robot motion nobody asked for) by the kind of touch.

@@ -101,7 +101,7 @@ def test_labels_match_the_contacts_they_describe(everything):
             assert e["start_s"] <= phases["motion_start_s"] < phases["motion_end_s"] <= e["end_s"]
     # The idle request: a 3 s gap before the next touch.
     events = everything.metadata["events"]
-    k = next(i for i, e in enumerate(events) if e["kind"] == "brush")
+    k = next(i for i, e in enumerate(events) if e["kind"] == INVALID_KINDS[-1])
     assert events[k + 1]["start_s"] - events[k]["end_s"] == pytest.approx(3.0, abs=0.01)
 
 
@@ -225,3 +225,36 @@ def test_bench_gestures_keeps_streams_only_in_a_new_folder(tmp_path):
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     assert [p.name for p in out.iterdir()] == ["flick-23000.npz"]
+
+
+def test_fidgets_are_what_they_say():
+    """A rub reverses along its line, a scribble bends, a slide has three fingertips and
+    a rest four, and none of them is labelled a gesture."""
+    from wovenskin.independent.invalid import perform_invalid
+    from wovenskin.independent.people import Person
+    from wovenskin.independent.performers import Trial
+    from wovenskin.skin.layout import SkinLayout
+
+    layout = SkinLayout()
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        trial = Trial(Person.draw(rng), rng, 200.0)
+        rub = perform_invalid("rub", trial, layout)
+        (finger,) = rub.fingers
+        on = finger.contact()
+        x, y = finger.x[on] - finger.x[on][0], finger.y[on] - finger.y[on][0]
+        heading = np.arctan2(y[np.argmax(np.hypot(x, y))], x[np.argmax(np.hypot(x, y))])
+        along = x * np.cos(heading) + y * np.sin(heading)
+        assert (np.maximum.accumulate(along) - along).max() > 3.0  # it came back
+        scribble = perform_invalid("scribble", trial, layout)
+        (finger,) = scribble.fingers
+        on = finger.contact()
+        step = np.hypot(np.diff(finger.x[on]), np.diff(finger.y[on]))
+        assert (
+            np.hypot(finger.x[on][-1] - finger.x[on][0], finger.y[on][-1] - finger.y[on][0])
+            < step.sum()
+        )
+        assert len(perform_invalid("slide3", trial, layout).fingers) == 3
+        assert len(perform_invalid("rest4", trial, layout).fingers) == 4
+        for kind in ("rub", "scribble", "slide3", "rest4"):
+            assert perform_invalid(kind, trial, layout).label == INVALID

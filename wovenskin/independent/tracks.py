@@ -141,8 +141,9 @@ def fit_to_skin(fingers: list[Finger], layout: SkinLayout, rng: np.random.Genera
     scale = min(1.0, room_x / max(x1 - x0, 1e-9), room_y / max(y1 - y0, 1e-9))
     cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
     half_x, half_y = scale * (x1 - x0) / 2, scale * (y1 - y0) / 2
-    px = rng.uniform(EDGE_MARGIN_MM + half_x, layout.width_mm - EDGE_MARGIN_MM - half_x)
-    py = rng.uniform(EDGE_MARGIN_MM + half_y, layout.height_mm - EDGE_MARGIN_MM - half_y)
+    low_x, low_y = EDGE_MARGIN_MM + half_x, EDGE_MARGIN_MM + half_y
+    px = rng.uniform(low_x, max(low_x, layout.width_mm - EDGE_MARGIN_MM - half_x))
+    py = rng.uniform(low_y, max(low_y, layout.height_mm - EDGE_MARGIN_MM - half_y))
     for f in fingers:
         f.x = px + scale * (f.x - cx)
         f.y = py + scale * (f.y - cy)

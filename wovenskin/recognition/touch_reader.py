@@ -206,7 +206,8 @@ class TouchRecognizer:
                 and not wide
             )
         if spec.motion == "circle":
-            return abs(st.turning) >= s.min_turn * 2 * math.pi and not wide
+            fingers_fit = spec.fingers < 2 or _finger_evidence(st, s) > 0.0
+            return abs(st.turning) >= s.min_turn * 2 * math.pi and fingers_fit and not wide
         if spec.motion == "press":
             return self._presses(st) and not wide
         if spec.fingers >= 5:
