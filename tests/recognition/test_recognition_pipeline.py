@@ -141,6 +141,31 @@ def test_live_pipeline_state_and_reset() -> None:
         pipeline.process(np.arange(3.0), signal, active, np.ones(60, dtype=bool))
 
 
+def test_the_tracks_after_each_frame_of_a_block_are_those_of_frame_by_frame() -> None:
+    n = 60
+    rows, cols = np.mgrid[0:10, 0:10]
+    centres = 2.0 + 5.0 * np.arange(n) / n  # a fingertip sliding along row 4
+    signal = np.stack(
+        [0.2 * np.exp(-((rows - 4.0) ** 2 + (cols - c) ** 2) / 1.5) for c in centres]
+    ).astype(np.float32)
+    active, touched, t = signal > 0.03, np.ones(n, dtype=bool), np.arange(n) / 200.0
+    settings = PipelineSettings(reader="touch")
+    whole = LivePipeline(ContactMeansSwipeRight(), 10, 10, 200.0, settings=settings)
+    whole.process(t, signal, active, touched)
+    single = LivePipeline(ContactMeansSwipeRight(), 10, 10, 200.0, settings=settings)
+    for k in range(n):
+        single.process(t[k : k + 1], signal[k : k + 1], active[k : k + 1], touched[k : k + 1])
+        got = [(tr.id, tr.y, tr.x, tr.merged) for tr in whole.tracks_at(t[k])]
+        assert got == [(tr.id, tr.y, tr.x, tr.merged) for tr in single.tracks()]
+    assert whole.tracks_at(t[-1])[0].x == pytest.approx(centres[-1] * 10.0, abs=2.0)  # mm
+    assert whole.tracks_at(1.0) is None  # a frame it never read
+    whole.reset()
+    assert whole.tracks_at(t[-1]) is None and whole.tracks() == []
+    window = LivePipeline(ContactMeansSwipeRight(), 10, 10, 200.0)  # tracks nothing
+    window.process(t, signal, active, touched)
+    assert window.tracks_at(t[0]) == [] and window.tracks() == []
+
+
 def test_a_recalibration_between_blocks_resets_the_pipeline() -> None:
     pipeline = LivePipeline(ContactMeansSwipeRight(), 10, 10, 200.0)
 

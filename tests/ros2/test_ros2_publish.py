@@ -3,8 +3,9 @@
 A replayed simulated stream runs through a session as fast as possible with the publisher
 attached, while an in-process Cyclone DDS participant on loopback (a random domain per
 test) subscribes to every topic.  What arrives is checked against the session's own
-conditioned frames (collected independently, from the live skin's blocks), against
-``rosbags``' serialiser byte for byte, and against the configured rates on stream time.
+conditioned frames (collected independently, from the live skin's blocks; the tracks from a
+touch reader of its own run over them), against ``rosbags``' serialiser byte for byte, and
+against the configured rates on stream time.
 """
 
 from __future__ import annotations
@@ -25,21 +26,29 @@ from cli_helpers import invoke  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 from wovenskin.gestures import CLASS_NAMES  # noqa: E402
+from wovenskin.recognition.pipeline import PipelineSettings  # noqa: E402
 from wovenskin.recording.formats import write_labelled_stream  # noqa: E402
 from wovenskin.ros2 import messages  # noqa: E402
 from wovenskin.ros2.node import LATCHED, QosProfile, Ros2Error, Ros2Node, loopback_config  # noqa: E402
 from wovenskin.runtime import ros2_settings  # noqa: E402
-from wovenskin.runtime.ros2_publish import POINT_FIELDS, RateGate, SkinPublisher  # noqa: E402
+from wovenskin.runtime.ros2_publish import (  # noqa: E402
+    POINT_FIELDS,
+    TRACK_FIELDS,
+    RateGate,
+    SkinPublisher,
+)
 from wovenskin.runtime.ros2_settings import SkinTopics, parse_ros2_publish  # noqa: E402
 from wovenskin.runtime.session import open_session  # noqa: E402
 from wovenskin.sim.stream import simulate_stream  # noqa: E402
 from wovenskin.skin.layout import SkinLayout  # noqa: E402
+from wovenskin.tracking.touch import TouchReader  # noqa: E402
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 T = TYPESTORE.types
 ROS_TYPES = {
     "frames": "sensor_msgs/msg/Image",
     "contacts": "sensor_msgs/msg/PointCloud2",
+    "tracks": "sensor_msgs/msg/PointCloud2",
     "gesture": "std_msgs/msg/String",
     "probabilities": "std_msgs/msg/Float32MultiArray",
     "class_names": "std_msgs/msg/String",
@@ -47,12 +56,16 @@ ROS_TYPES = {
 KINDS = {
     "frames": messages.Image,
     "contacts": messages.PointCloud2,
+    "tracks": messages.PointCloud2,
     "gesture": messages.String,
     "probabilities": messages.Float32MultiArray,
     "class_names": messages.String,
 }
 DEEP = QosProfile(depth=100_000, reliable=False)  # keeps every sample until taken
-RATES = {"frames": 100.0, "contacts": 50.0, "gesture": 20.0, "probabilities": 20.0}
+RATES = {"frames": 100.0, "contacts": 50.0, "tracks": 50.0, "gesture": 20.0, "probabilities": 20.0}
+TRACK_POINT = np.dtype(  # what a subscriber reads, written out here on its own
+    {"names": list(TRACK_FIELDS), "formats": ["<f4"] * 3 + ["<u4"] + ["<f4"] * 4 + ["<u4"]}
+)
 
 
 @pytest.fixture(scope="module")
@@ -82,8 +95,23 @@ def random_domain() -> int:
 def replay(stream_file, tmp_path, publisher, **kwargs):
     return open_session(
         f"replay:{stream_file}", "sim", recognizer=ContactMeans("swipe_up"), fast_replay=True,
-        poses=tmp_path / "poses.toml", on_tick=publisher.on_tick, **kwargs,
+        poses=tmp_path / "poses.toml", on_tick=publisher.on_tick,
+        pipeline_settings=PipelineSettings(reader="touch"), **kwargs,
     )  # fmt: skip
+
+
+def tracks_of(blocks, info) -> list[list]:
+    """The tracks after each conditioned frame, from a touch reader of the test's own."""
+    reader = TouchReader(
+        info.rows, info.cols, info.row_pitch_mm, info.col_pitch_mm, info.sample_rate_hz
+    )
+    out = []
+    for block in blocks:
+        cond = block.cond
+        for fast, active, touched in zip(cond.fast, cond.active, cond.touched, strict=True):
+            state = reader.step(fast, active, bool(touched))
+            out.append([] if state is None else [vars(t).copy() for t in state.tracks])
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -115,6 +143,7 @@ def published(cyclone_loopback, stream_file, tmp_path_factory):
         "t": np.concatenate([b.t for b in blocks]),
         "frames": np.concatenate([b.cond.signal for b in blocks]),
         "contacts": [c for b in blocks for c in b.cond.contacts],
+        "tracks": tracks_of(blocks, session.live_skin.info),
     }
     yield types.SimpleNamespace(
         publisher=publisher, session=session, result=result, received=received,
@@ -213,6 +242,52 @@ def test_contacts_are_points_on_the_skin_plane_in_metres(published) -> None:
     assert 0 < touched < len(expected)  # swipes and empty clouds between them
 
 
+def test_tracks_are_the_recognisers_in_the_frame_of_the_contacts(published) -> None:
+    run = published
+    expected = run.ticks["tracks"][::4]  # 50 Hz of a 200 Hz skin, the frames of the contacts
+    assert len(run.received["tracks"]) == len(expected)
+    layout, rate = SkinLayout(), 200.0
+    kinds = [7, 7, 7, 6, 7, 7, 7, 7, 6]  # FLOAT32 x, y, z; UINT32 id; ...; UINT32 merged
+    seen: set[int] = set()
+    for data, tracks in zip(run.received["tracks"], expected, strict=True):
+        cloud = decoded(data, ROS_TYPES["tracks"])
+        assert [f.name for f in cloud.fields] == list(TRACK_FIELDS)
+        assert [f.offset for f in cloud.fields] == [4 * k for k in range(len(TRACK_FIELDS))]
+        assert [f.datatype for f in cloud.fields] == kinds and {f.count for f in cloud.fields} == {
+            1
+        }
+        assert (cloud.height, cloud.width, cloud.point_step) == (1, len(tracks), 36)
+        assert cloud.row_step == 36 * len(tracks) and cloud.header.frame_id == "wovenskin_skin"
+        points = np.frombuffer(cloud.data.tobytes(), dtype=TRACK_POINT)
+        for point, track in zip(points, tracks, strict=True):
+            row, col = track["y"] / layout.row_pitch_mm, track["x"] / layout.col_pitch_mm
+            x_mm, y_mm = layout.rc_to_mm(row, col)  # the contacts' frame: corner origin, metres
+            np.testing.assert_allclose(
+                [point["x"], point["y"], point["z"]], [x_mm / 1000, y_mm / 1000, 0.0], rtol=1e-6
+            )
+            velocity = [track["vx"] * rate / 1000, track["vy"] * rate / 1000]  # mm/frame -> m/s
+            np.testing.assert_allclose([point["vx"], point["vy"]], velocity, rtol=1e-5, atol=1e-7)
+            assert point["id"] == track["id"] and point["merged"] == int(track["merged"])
+            assert point["travel"] == pytest.approx(track["travel"] / 1000, rel=1e-6)
+            assert point["amplitude"] == pytest.approx(track["amplitude"], rel=1e-6)
+            assert 0 <= point["x"] <= layout.width_mm / 1000
+            assert 0 <= point["y"] <= layout.height_mm / 1000
+            seen.add(int(point["id"]))
+        fields = [
+            T["sensor_msgs/msg/PointField"](name=n, offset=4 * k, datatype=kind, count=1)
+            for k, (n, kind) in enumerate(zip(TRACK_FIELDS, kinds, strict=True))
+        ]
+        message = T[ROS_TYPES["tracks"]](
+            header=ros_header(cloud.header.stamp, "wovenskin_skin"), height=1,
+            width=len(tracks), fields=fields, is_bigendian=False, point_step=36,
+            row_step=36 * len(tracks), data=np.frombuffer(points.tobytes(), dtype=np.uint8),
+            is_dense=True,
+        )  # fmt: skip
+        same_cdr(data, message, ROS_TYPES["tracks"])
+    assert seen and min(seen) >= 1  # identities count up from 1
+    assert 0 < sum(bool(t) for t in expected) < len(expected)  # swipes, empty clouds between
+
+
 def test_gesture_goes_at_its_rate_and_on_every_change(published) -> None:
     run = published
     times = run.ticks["t"]
@@ -302,6 +377,7 @@ def test_settings_from_the_command_line_value() -> None:
     assert parse_ros2_publish("on") == SkinTopics()
     chosen = parse_ros2_publish("frames=50,contacts=20,probabilities=0,ns=/skin/left,domain=7")
     assert chosen == SkinTopics(50, 20, 20, 0, "/skin/left", 7)
+    assert chosen.tracks == 50.0 and parse_ros2_publish("tracks=0").rate("tracks") == 0.0
     assert chosen.topic("frames") == "/skin/left/frames"
     assert SkinTopics(ns="wovenskin/").topic("gesture") == "/wovenskin/gesture"
 
@@ -322,9 +398,8 @@ def test_settings_from_the_command_line_value() -> None:
 def test_a_bad_ros2_publish_value_is_one_line(value: str, says: str) -> None:
     result = invoke("run", "--headless", "--ros2-publish", value)
     assert result.exit_code == 2, result.output
-    assert says in result.stderr and "frames, contacts, gesture, probabilities, ns, domain" in (
-        result.stderr
-    )
+    keys = "frames, contacts, tracks, gesture, probabilities, ns, domain"
+    assert says in result.stderr and keys in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output
 
 
@@ -341,10 +416,12 @@ def test_wovenskin_run_publishes_headless(cyclone_loopback, stream_file, tmp_pat
     domain = random_domain()
     result = invoke(
         "run", "--skin", f"replay:{stream_file}", "--headless", "--seconds", "1",
-        "--poses", tmp_path / "p.toml", "--ros2-publish", f"frames=50,contacts=0,domain={domain}",
+        "--poses", tmp_path / "p.toml",
+        "--ros2-publish", f"frames=50,contacts=0,tracks=0,domain={domain}",
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     assert f"ROS 2 (domain {domain}) under /wovenskin: frames 50 Hz, gesture 20 Hz" in result.stderr
     summary = [line for line in result.stderr.splitlines() if line.startswith("ROS 2 under")]
     assert len(summary) == 1 and " frames" in summary[0] and "contacts" not in summary[0]
+    assert "tracks" not in summary[0]  # turned off like the others
     assert "us per tick" in summary[0]

@@ -1,7 +1,7 @@
-"""Small texts of the dashboard page: the page rate is never "Infinity Hz", and the Skin
-and Robot fields are not cut to a fixed width.
+"""Small texts of the dashboard page: the page rate is never "Infinity Hz", the Skin and
+Robot fields are not cut to a fixed width, and the tracks sit where the contacts are drawn.
 
-The page rate's function is taken from dashboard.js and run in Node (no browser needed)."""
+The page's functions are taken from dashboard.js and run in Node (no browser needed)."""
 
 from __future__ import annotations
 
@@ -42,3 +42,23 @@ def test_the_skin_and_robot_fields_have_no_fixed_width() -> None:
         assert tag and "size=" not in tag.group(0), f"{field} is not a growing spec field"
     css = (STATIC / "dashboard.css").read_text()
     assert re.search(r"label\.spec input \{[^}]*flex:1", css)
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="needs Node.js")
+def test_tracks_are_drawn_in_the_contacts_coordinates_with_their_velocity() -> None:
+    tracks = [
+        {"id": 3, "row": 0.0, "col": 2.0, "v_row": 0.0, "v_col": 10.0, "merged": False},
+        {"id": 4, "row": 4.5, "col": 4.5, "v_row": -2.0, "v_col": 0.0, "merged": True},
+    ]
+    script = (
+        "const TRACK_ARROW_S = 0.15;\n"
+        + js_function("trackMarks")
+        + f"\nconsole.log(JSON.stringify(trackMarks({json.dumps(tracks)}, 20, 30)));"
+    )
+    out = subprocess.run(["node", "-e", script], capture_output=True, text=True, check=True)
+    first, second = json.loads(out.stdout)
+    assert (first["x"], first["y"]) == (50, 15)  # (col + 0.5) x cell, as the contacts
+    assert first["toX"] == pytest.approx(50 + 10 * 0.15 * 20) and first["toY"] == 15
+    assert first["label"] == "3" and not first["merged"]
+    assert (second["x"], second["y"]) == (100, 150) and second["toY"] == pytest.approx(141)
+    assert second["label"] == "4 merged" and second["merged"]

@@ -13,6 +13,7 @@ from stand_ins import wait_until as _wait
 from starlette.websockets import WebSocketDisconnect
 
 from wovenskin.gestures import CLASS_NAMES
+from wovenskin.recognition.pipeline import PipelineSettings
 from wovenskin.recording.formats import write_labelled_stream
 from wovenskin.robots.sim import SimRobot
 from wovenskin.robots.sim.tm5_900 import INITIAL_Q
@@ -147,6 +148,37 @@ def test_virtual_touches_reach_the_robot_only_through_the_recogniser(runner) -> 
     assert _wait(lambda: runner.latest()["recognition"]["command"] is None)
     timeline = runner.latest()["timeline"]
     assert [e["name"] for e in timeline if e["kind"] == "command"][-2:] == ["swipe_up", None]
+
+
+def test_a_touch_shows_the_recognisers_tracks_where_the_fingers_are(tmp_path) -> None:
+    def opener(skin: str, robot: str):
+        return open_session(
+            skin, robot, recognizer=ContactMeans("swipe_up"), poses=tmp_path / "poses.toml",
+            pipeline_settings=PipelineSettings(reader="touch"),
+        )  # fmt: skip
+
+    runner = DashboardRunner(opener, "sim:auto=0,seed=2", "sim", record_dir=tmp_path / "rec")
+    runner.start()
+    try:
+        assert _wait(lambda: runner.latest() and not runner.latest()["skin"]["calibrating"])
+        assert runner.latest()["skin"]["tracks"] == []
+        # x right, y down from the corner (mm): columns 2.5 and 6.5, row 4.5 of the 10 x 10 skin
+        runner.touch({1: Fingertip(30.0, 70.0, 1.5), 2: Fingertip(70.0, 70.0, 1.5)})
+        assert _wait(lambda: len(runner.latest()["skin"]["tracks"]) == 2)
+        skin = runner.latest()["skin"]
+        tracks = sorted(skin["tracks"], key=lambda t: t["col"])
+        assert len({t["id"] for t in tracks}) == 2 and min(t["id"] for t in tracks) >= 1
+        for track, col in zip(tracks, (2.5, 6.5), strict=True):
+            assert -0.5 <= track["row"] <= skin["rows"] - 0.5
+            assert -0.5 <= track["col"] <= skin["cols"] - 0.5
+            assert track["row"] == pytest.approx(4.5, abs=1.0)  # the contacts' coordinates
+            assert track["col"] == pytest.approx(col, abs=1.0)
+            assert {"v_row", "v_col", "speed_mm_s", "travel_mm", "merged"} <= set(track)
+        json.dumps(skin, allow_nan=False)
+        runner.touch({})
+        assert _wait(lambda: runner.latest()["skin"]["tracks"] == [])
+    finally:
+        runner.close()
 
 
 def test_commands_stop_resume_speed_and_record(runner, tmp_path) -> None:

@@ -247,6 +247,17 @@ def test_a_drawn_upward_swipe_drives_the_arm_along_its_tool_z(page) -> None:
     assert page.problems == []
 
 
+def test_a_touch_draws_the_recognisers_tracks_on_the_heatmap(page) -> None:
+    _swipe_up(page)  # the finger then rests: its track stays
+    assert _wait_for(page, "window.wovenskin.state.skin.tracks.length > 0", 10.0)
+    tracks = _state(page)["skin"]["tracks"]
+    assert tracks and all(t["id"] >= 1 for t in tracks)
+    _save(page, "dashboard-tracks.png")  # a marker labelled with its id, a velocity arrow
+    page.mouse.up()
+    assert _wait_for(page, "window.wovenskin.state.skin.tracks.length === 0", 10.0)
+    assert page.problems == []
+
+
 def test_the_stop_button_stops_the_moving_arm_until_resumed(page) -> None:
     fingers = TouchScreen(page)  # a finger rests on the touch screen while the mouse clicks
     fingers.swipe([(0.5, 0.8)], (0.0, -0.65))

@@ -47,8 +47,10 @@ from wovenskin.recognition.arbiter import (
     PerformingSettings,
 )
 from wovenskin.recognition.checkpoint_meta import ModelInputError
+from wovenskin.recognition.frame_tracks import FrameTracks, read_touch
 from wovenskin.recognition.onnx_runtime import ONNX_THREADS, OnnxRecognizer
 from wovenskin.recognition.shipped import resolve_model_dir
+from wovenskin.recognition.stream_file import load_stream
 from wovenskin.recognition.streaming import Recognizer, StreamingRecognizer, model_window
 from wovenskin.recognition.touch_reader import (
     READERS,
@@ -57,12 +59,10 @@ from wovenskin.recognition.touch_reader import (
     ReaderSettings,
     TouchRecognizer,
 )
-from wovenskin.recording.files import read_stream
 from wovenskin.recording.formats import LabelledStream
 from wovenskin.signal.conditioner import LiveConditioner
 from wovenskin.signal.config import ConditioningConfig
 from wovenskin.signal.live_skin import LiveBlock
-from wovenskin.skin.layout import check_supported
 from wovenskin.tracking.tracker import Track
 
 RESET = "reset"
@@ -148,9 +148,7 @@ def pipeline_settings_for_model(
         ReaderSettings.from_dict(getattr(meta, "reader", None) or {}) if kind == TOUCH else None
     )
     extra = {} if every is None else {"every": every}
-    return PipelineSettings(
-        arbiter=arbiter, reader=kind, reader_settings=reader_settings, **extra
-    )
+    return PipelineSettings(arbiter=arbiter, reader=kind, reader_settings=reader_settings, **extra)
 
 
 def conditioning_for_model(recognizer: Any) -> ConditioningConfig | None:
@@ -231,6 +229,7 @@ class LivePipeline:
                 performing = replace(performing, row_pitch_mm=pitches[0], col_pitch_mm=pitches[1])
         self.performing = PerformingDetector(sample_rate_hz, performing)
         self.touch: TouchRecognizer | None = None
+        self.frame_tracks = FrameTracks()  # the tracks after each recent frame
         if self.settings.reader == TOUCH:
             self.touch = TouchRecognizer(
                 self.streaming.class_names,
@@ -287,6 +286,11 @@ class LivePipeline:
         centre of channel ``[0, 0]``); empty when the window reader runs, which tracks
         nothing."""
         return [] if self.touch is None else self.touch.tracks
+
+    def tracks_at(self, t: float) -> list[Track] | None:
+        """The live tracks after the frame at stream time ``t`` of the last frames fed
+        (:mod:`~wovenskin.recognition.frame_tracks`); ``None`` when it is not among them."""
+        return [] if self.touch is None else self.frame_tracks.at(t)
 
     def latest_top(self) -> tuple[str, float]:
         """The most probable class of the latest window and its probability."""
@@ -353,7 +357,7 @@ class LivePipeline:
                 tracked = tracked[np.newaxis]
             if tracked.shape != signal.shape:
                 raise DataError(f"fast frames shaped {tracked.shape}, frames {signal.shape}")
-            rows = self.touch.run(tracked, np.asarray(active), touched, rows)
+            rows = read_touch(self.touch, self.frame_tracks, t, tracked, active, touched, rows)
             predicted = np.ones(len(t), dtype=bool)
         if self.recorded is not None:  # the arbiter's inputs, to replay other rules on
             self.recorded.append((t, touched, performing, predicted, rows))
@@ -375,6 +379,7 @@ class LivePipeline:
         self.performing.reset()
         if self.touch is not None:
             self.touch.reset()
+        self.frame_tracks.clear()
         self.arbiter = Arbiter(self.class_names, self.arbiter.sample_rate_hz, self.arbiter.settings)
         self.touched = False
         self._next_index = None
@@ -411,23 +416,6 @@ class PipelineResult:
             "calibration": self.calibration,
             "warnings": list(self.warnings),
         }
-
-
-def load_stream(stream: LabelledStream | str | os.PathLike) -> LabelledStream:
-    """``stream`` itself, or the labelled stream read from a ``.npz`` or ``.wsrec`` path
-    (the kind decided by content: :func:`wovenskin.recording.files.read_stream`); a grid or
-    rate the pipeline cannot use is one
-    :class:`~wovenskin.skin.layout.UnsupportedSkinError` line naming the file."""
-    if isinstance(stream, LabelledStream):
-        labelled, where = stream, "the stream"
-    elif not os.path.isfile(stream):
-        raise FileNotFoundError(f"{stream}: no such file")
-    else:
-        labelled, where = read_stream(stream, "the pipeline"), str(stream)
-    shape = np.shape(labelled.frames)
-    if len(shape) == 3:  # run_pipeline names any other shape
-        check_supported(shape[1], shape[2], labelled.sample_rate_hz, where)
-    return labelled
 
 
 def run_pipeline(

@@ -169,6 +169,7 @@ class PointField(IdlStruct, typename="sensor_msgs::msg::dds_::PointField_"):
     """``sensor_msgs/msg/PointField``: one named field of a point cloud's points."""
 
     ros_name = "sensor_msgs/msg/PointField"
+    UINT32 = 6  # the datatype constant of a 32-bit unsigned integer
     FLOAT32 = 7  # the datatype constant of a 32-bit float
     name: str = ""
     offset: uint32 = 0

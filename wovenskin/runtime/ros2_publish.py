@@ -1,4 +1,4 @@
-"""The skin on ROS 2: a running control session's frames, contacts and gestures as topics.
+"""The skin on ROS 2: a running control session's frames, contacts, tracks and gestures.
 
 :class:`SkinPublisher` is handed to a session as its ``on_tick`` (``open_session(...,
 on_tick=publisher.on_tick)``) and publishes, under its namespace (default ``/wovenskin``):
@@ -14,20 +14,26 @@ on_tick=publisher.on_tick)``) and publishes, under its namespace (default ``/wov
   the sensing area (:meth:`~wovenskin.skin.layout.SkinLayout.rc_to_mm`), ``z`` = 0 (in a
   right-handed frame the ``z`` axis points into the skin, away from the user); an empty
   cloud when nothing touches;
+- ``tracks`` (``sensor_msgs/msg/PointCloud2``): one point per contact track the recogniser
+  follows after that frame (:class:`~wovenskin.tracking.tracker.Track`, the touch reader
+  only), float32 ``x``, ``y``, ``z`` in metres in the frame of the contacts, uint32 ``id``,
+  float32 ``vx``, ``vy`` (m/s), ``travel`` (m) and ``amplitude``, uint32 ``merged`` (1:
+  sharing another track's peak); an empty cloud when nothing is tracked;
 - ``gesture`` (``std_msgs/msg/String``): the active gesture, ``""`` when none, at its rate
   and on every change;
 - ``probabilities`` (``std_msgs/msg/Float32MultiArray``): the recogniser's newest class
   probabilities, one dimension labelled ``class``; ``class_names`` (``std_msgs/msg/String``,
   latched): the names in that order, comma-separated, once per session and on a change.
 
-Every message is stamped with the system clock when it is sent; the frames and contacts
-carry ``header.frame_id`` ``wovenskin_skin``.  Rates count on the skin's stream clock (the
-tick's time), not the wall clock, so a replay played as fast as possible publishes the same
-frames as in real time.  The streams are best effort (:data:`~wovenskin.ros2.node.SENSOR_DATA`).
-Publishing runs in the control thread after each tick, about 0.05-0.2 ms per tick on
-average at the default rates (docs/ros2.md gives the figures; :class:`PublishStats` measures
-every run); it never breaks the loop: the first DDS error is reported as one line and
-publishing stops.
+Every message is stamped with the system clock when it is sent; the frames, contacts and
+tracks carry ``header.frame_id`` ``wovenskin_skin``.  Rates count on the skin's stream clock
+(the tick's time), not the wall clock, so a replay played as fast as possible publishes the
+same frames as in real time (the tracks too: the recogniser reads a block of frames at once,
+and :meth:`~wovenskin.recognition.pipeline.LivePipeline.tracks_at` gives those after each).
+The streams are best effort (:data:`~wovenskin.ros2.node.SENSOR_DATA`).  Publishing runs in
+the control thread after each tick, about 0.05-0.2 ms per tick on average at the default
+rates (docs/ros2.md gives the figures; :class:`PublishStats` measures every run); it never
+breaks the loop: the first DDS error is reported as one line and publishing stops.
 """
 
 from __future__ import annotations
@@ -46,6 +52,10 @@ from wovenskin.runtime.ros2_settings import FRAME_ID, RATE_KEYS, TOPICS, SkinTop
 
 POINT_FIELDS = ("x", "y", "z", "row", "col", "size", "peak", "strength")
 POINT_DTYPE = np.dtype([(name, "<f4") for name in POINT_FIELDS])
+TRACK_FIELDS = ("x", "y", "z", "id", "vx", "vy", "travel", "amplitude", "merged")
+TRACK_DTYPE = np.dtype(
+    [(name, "<u4" if name in ("id", "merged") else "<f4") for name in TRACK_FIELDS]
+)
 
 
 class RateGate:
@@ -126,20 +136,49 @@ def contact_points(contacts: list, layout: Any) -> np.ndarray:
     return points
 
 
-_POINT_FIELDS = [
-    messages.PointField(name, 4 * k, messages.PointField.FLOAT32, 1)
-    for k, name in enumerate(POINT_FIELDS)
-]
+def track_points(tracks: list, layout: Any, sample_rate_hz: float) -> np.ndarray:
+    """The points of the recogniser's tracks (:data:`TRACK_DTYPE`): positions (mm from the
+    centre of channel ``[0, 0]``) and velocities (mm per frame) taken to channel units
+    and through the layout's :meth:`~wovenskin.skin.layout.SkinLayout.rc_to_mm`, as the
+    contacts; metres and metres per second."""
+    points = np.zeros(len(tracks), dtype=TRACK_DTYPE)
+    if not tracks:
+        return points
+    row = np.array([t.y for t in tracks]) / layout.row_pitch_mm
+    col = np.array([t.x for t in tracks]) / layout.col_pitch_mm
+    x_mm, y_mm = layout.rc_to_mm(row, col)
+    d_row = np.array([t.vy for t in tracks]) / layout.row_pitch_mm  # one frame on
+    d_col = np.array([t.vx for t in tracks]) / layout.col_pitch_mm
+    next_x, next_y = layout.rc_to_mm(row + d_row, col + d_col)
+    per_s = float(sample_rate_hz) / 1000.0
+    points["x"], points["y"] = np.asarray(x_mm) / 1000.0, np.asarray(y_mm) / 1000.0
+    points["vx"], points["vy"] = (next_x - x_mm) * per_s, (next_y - y_mm) * per_s
+    points["id"] = [t.id for t in tracks]
+    points["travel"] = [t.travel / 1000.0 for t in tracks]
+    points["amplitude"] = [t.amplitude for t in tracks]
+    points["merged"] = [bool(t.merged) for t in tracks]
+    return points
+
+
+def _point_fields(dtype: np.dtype) -> list[messages.PointField]:
+    kinds = {"<f4": messages.PointField.FLOAT32, "<u4": messages.PointField.UINT32}
+    return [
+        messages.PointField(name, dtype.fields[name][1], kinds[dtype[name].str], 1)
+        for name in dtype.names
+    ]
+
+
+_FIELDS = {POINT_DTYPE: _point_fields(POINT_DTYPE), TRACK_DTYPE: _point_fields(TRACK_DTYPE)}
 
 
 def cloud_message(points: np.ndarray, stamp: messages.Time) -> messages.PointCloud2:
-    """An unordered cloud (``height`` 1) of :data:`POINT_DTYPE` points."""
-    step = POINT_DTYPE.itemsize
+    """An unordered cloud (``height`` 1) of :data:`POINT_DTYPE` or :data:`TRACK_DTYPE` points."""
+    step = points.dtype.itemsize
     return messages.PointCloud2(
         header=messages.Header(stamp, FRAME_ID),
         height=1,
         width=len(points),
-        fields=list(_POINT_FIELDS),
+        fields=list(_FIELDS[points.dtype]),
         is_bigendian=False,
         point_step=step,
         row_step=step * len(points),
@@ -167,6 +206,13 @@ def tick_frame(session: Any) -> tuple[np.ndarray | None, list]:
             return block.cond.signal[k], block.cond.contacts[k]
     live = session.live_skin.state
     return live.signal, list(live.contacts)
+
+
+def tick_tracks(session: Any) -> list | None:
+    """The recogniser's tracks after the frame of the session's current tick (``[]`` for a
+    pipeline that tracks nothing; ``None`` where it no longer holds that frame's)."""
+    tracks_at = getattr(session.pipeline, "tracks_at", None)
+    return [] if tracks_at is None else tracks_at(float(session.state.t))
 
 
 class SkinPublisher:
@@ -207,6 +253,7 @@ class SkinPublisher:
         kinds = {
             "frames": messages.Image,
             "contacts": messages.PointCloud2,
+            "tracks": messages.PointCloud2,
             "gesture": messages.String,
             "probabilities": messages.Float32MultiArray,
         }
@@ -257,6 +304,10 @@ class SkinPublisher:
             if frame is not None and due["contacts"]:
                 points = contact_points(contacts, session.live_skin.info.layout)
                 self._send("contacts", cloud_message(points, stamp))
+        if due["tracks"] and (tracks := tick_tracks(session)) is not None:
+            info = session.live_skin.info
+            points = track_points(tracks, info.layout, info.sample_rate_hz)
+            self._send("tracks", cloud_message(points, stamp))
         if due["gesture"] or changed:
             self._send("gesture", messages.String(gesture))
             self._gesture = gesture

@@ -12,16 +12,16 @@ from __future__ import annotations
 
 import importlib.util
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 from wovenskin.errors import ConfigError, MissingExtraError
 from wovenskin.ros2.node import dds_topic_name, domain_id
 from wovenskin.specs import parse_spec
 
 MAX_RATE_HZ = 1000.0  # a rate above the skin's own (200 Hz) publishes every frame
-RATE_KEYS = ("frames", "contacts", "gesture", "probabilities")
+RATE_KEYS = ("frames", "contacts", "tracks", "gesture", "probabilities")
 TOPICS = (*RATE_KEYS, "class_names")
-FRAME_ID = "wovenskin_skin"  # header.frame_id of the frames and the contacts
+FRAME_ID = "wovenskin_skin"  # header.frame_id of the frames, the contacts and the tracks
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,7 @@ class SkinTopics:
 
     frames: float = 100.0
     contacts: float = 50.0
+    tracks: float = field(default=50.0, kw_only=True)  # keyword only: the positions hold
     gesture: float = 20.0
     probabilities: float = 20.0
     ns: str = "/wovenskin"

@@ -3,7 +3,8 @@
 :func:`build_snapshot` reads a :class:`~wovenskin.control.session.ControlSession` (its
 skin, recogniser, safety layer and robot state) and the runner's own bookkeeping
 (:class:`Timeline`, latencies) and returns plain lists, numbers and strings.  It runs on the
-session's thread, so everything it reads is consistent; the server only serialises it.
+session's thread, so everything it reads is consistent (the heatmap's frame, its contacts
+and the recogniser's tracks are all of the newest frame read); the server only serialises it.
 """
 
 from __future__ import annotations
@@ -49,8 +50,31 @@ def _floats(values: Any, digits: int = 4) -> list[float]:
     return [round(float(v), digits) for v in array]
 
 
+def tracks_part(session: Any) -> list[dict]:
+    """The recogniser's live contact tracks, in channel units as the contacts (rows down,
+    columns across, channel centres at integers; velocities in channels per second)."""
+    tracks = getattr(getattr(session, "pipeline", None), "tracks", None)
+    if tracks is None:  # a pipeline that tracks nothing
+        return []
+    info = session.live_skin.info
+    rate, row_mm, col_mm = float(info.sample_rate_hz), info.row_pitch_mm, info.col_pitch_mm
+    return [
+        {
+            "id": int(track.id),
+            "row": round(track.y / row_mm, 3),
+            "col": round(track.x / col_mm, 3),
+            "v_row": round(track.vy * rate / row_mm, 2),
+            "v_col": round(track.vx * rate / col_mm, 2),
+            "speed_mm_s": round(track.speed_mm_s(rate), 1),
+            "travel_mm": round(float(track.travel), 1),
+            "merged": bool(track.merged),
+        }
+        for track in tracks()
+    ]
+
+
 def skin_part(session: Any, source_spec: str, virtual: bool) -> dict:
-    """The heatmap, contacts and stream health."""
+    """The heatmap, contacts, the recogniser's tracks and stream health."""
     live = session.live_skin
     state = live.state
     info = live.info
@@ -74,6 +98,7 @@ def skin_part(session: Any, source_spec: str, virtual: bool) -> dict:
         "signal": _floats(signal),
         "full_scale": SIGNAL_FULL_SCALE,
         "contacts": contacts,
+        "tracks": tracks_part(session),
         "fps": round(float(state.frame_rate_hz), 1),
         "calibrating": bool(state.calibrating),
         "stalled": bool(state.stalled or stats.stalled),

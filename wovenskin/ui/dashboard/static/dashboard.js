@@ -168,6 +168,7 @@ function updateSkin(skin) {
     skinCtx.beginPath(); skinCtx.arc(x, y, radius, 0, 2 * Math.PI); skinCtx.stroke();
     skinCtx.fillStyle = "#7ee0ff"; skinCtx.beginPath(); skinCtx.arc(x, y, 3, 0, 2 * Math.PI); skinCtx.fill();
   }
+  drawTracks(skin.tracks || [], cw, ch);
   const mm = mmToCanvas();
   for (const tip of touchList()) { // where the virtual fingertips are
     skinCtx.strokeStyle = "rgba(255,255,255,0.8)"; skinCtx.lineWidth = 1.5;
@@ -189,6 +190,40 @@ function updateSkin(skin) {
   $("skin-status").textContent = `${skin.fps.toFixed(0)} fps${skin.stalled ? " · STALLED" : ""}${skin.virtual ? "" : " · drawing off (not simulated)"}${slowMotion(page.state)}`;
   $("skin-counters").textContent = `frames ${k.good} · bad ${k.bad} · dropped ${k.dropped} · reconnects ${k.reconnects} · errors ${k.session_errors}` +
     (skin.last_error ? `\nlast: ${skin.last_error}` : "");
+}
+
+// The recogniser's contact tracks: where each will be in TRACK_ARROW_S at its velocity.
+const TRACK_ARROW_S = 0.15;
+
+function trackMarks(tracks, cw, ch) { // canvas geometry of each track (channel units in)
+  return tracks.map((t) => {
+    const x = (t.col + 0.5) * cw, y = (t.row + 0.5) * ch;
+    return { id: t.id, merged: t.merged, x, y,
+      toX: x + t.v_col * TRACK_ARROW_S * cw, toY: y + t.v_row * TRACK_ARROW_S * ch,
+      label: t.merged ? `${t.id} merged` : String(t.id) };
+  });
+}
+
+function drawTracks(tracks, cw, ch) { // a marker per track, its id and a velocity arrow
+  const dpr = window.devicePixelRatio || 1;
+  skinCtx.font = `${11 * dpr}px system-ui`; skinCtx.lineWidth = 1.5 * dpr;
+  for (const m of trackMarks(tracks, cw, ch)) {
+    const colour = m.merged ? "#ffb347" : "#b6f36b"; // merged: sharing another's peak
+    skinCtx.strokeStyle = colour; skinCtx.fillStyle = colour;
+    skinCtx.setLineDash(m.merged ? [3 * dpr, 3 * dpr] : []);
+    skinCtx.beginPath(); skinCtx.rect(m.x - 5 * dpr, m.y - 5 * dpr, 10 * dpr, 10 * dpr); skinCtx.stroke();
+    skinCtx.setLineDash([]);
+    const dx = m.toX - m.x, dy = m.toY - m.y, length = Math.hypot(dx, dy);
+    if (length > 3 * dpr) { // still fingers get no arrow
+      const ux = dx / length, uy = dy / length, head = 5 * dpr;
+      skinCtx.beginPath(); skinCtx.moveTo(m.x, m.y); skinCtx.lineTo(m.toX, m.toY);
+      skinCtx.lineTo(m.toX - head * (ux - 0.5 * uy), m.toY - head * (uy + 0.5 * ux));
+      skinCtx.moveTo(m.toX, m.toY);
+      skinCtx.lineTo(m.toX - head * (ux + 0.5 * uy), m.toY - head * (uy - 0.5 * ux));
+      skinCtx.stroke();
+    }
+    skinCtx.fillText(m.label, m.x + 7 * dpr, m.y - 7 * dpr);
+  }
 }
 
 // When this computer cannot keep the session in real time, the simulated skin slows the
