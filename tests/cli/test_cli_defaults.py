@@ -85,6 +85,8 @@ SETTINGS: dict[tuple[str, str], tuple[type | str, str, float]] = {
     ("study simulate", "interface"): ("wovenskin.study.simulate", "INTERFACES", 1),
     ("study simulate", "objects"): ("wovenskin.study.simulate", "OBJECTS", 1),
     ("study simulate", "jobs"): ("wovenskin.study.simulate", "JOBS", 1),
+    ("study simulate", "hands"): ("wovenskin.study.simulate", "HANDS", 1),
+    ("reproduce", "hands"): ("wovenskin.study.simulate", "HANDS", 1),
     ("study synthetic", "participants"): ("wovenskin.study.synthetic", "PARTICIPANTS", 1),
     ("study synthetic", "trials"): ("wovenskin.study.synthetic", "TRIALS_PER_CONDITION", 1),
     ("run", "ui_rate"): ("wovenskin.ui.dashboard.runner", "UI_RATE_HZ", 1),

@@ -25,10 +25,17 @@ _DATASET_COUNTS = ("windows_per_recording", "invalid_windows_per_recording", "wo
 LIBRARY_DEFAULTS = {
     # (module, function or class) -> the parameters (fields) whose default names its home
     ("wovenskin.study.definition", "StudyDefinition"): ("time_limit_s",),
-    ("wovenskin.study.simulate", "simulate_study"): ("participants", "trials", "time_limit_s"),
+    ("wovenskin.study.simulate", "simulate_study"): (
+        "participants",
+        "trials",
+        "time_limit_s",
+        "hands",
+    ),  # fmt: skip
+    ("wovenskin.study.simulate", "run_trial"): ("hands",),
+    ("wovenskin.study.simulate", "_Job"): ("hands",),
     ("wovenskin.study.simulate", "estimate_wall_s"): ("time_limit_s",),
     ("wovenskin.study.synthetic", "synthetic_study"): ("participants", "trials"),
-    ("wovenskin.reproduce.study", "StudyConfig"): ("time_limit_s",),
+    ("wovenskin.reproduce.study", "StudyConfig"): ("time_limit_s", "hands"),
     ("wovenskin.ui.dashboard.runner", "DashboardRunner.__init__"): ("ui_rate_hz",),
     ("wovenskin.bench.dashboard", "run_dashboard_benchmark"): ("ui_rate_hz",),
     ("wovenskin.ui.view", "run_view"): ("fps",),
@@ -142,6 +149,7 @@ def test_study_simulate_and_synthetic_fall_through_to_their_modules(monkeypatch,
     assert args[1:4] == (simulate.PARTICIPANTS, 0, simulate.TRIALS_PER_CONDITION)
     assert kwargs["time_limit_s"] == definition.TIME_LIMIT_S
     assert parameters["participants"] == simulate.PARTICIPANTS
+    assert kwargs["hands"] == simulate.HANDS == parameters["hands"]
     assert parameters["time_limit_s"] == StudyDefinition(name="any").time_limit_s
 
     study = StudyDefinition(name="stand-in")

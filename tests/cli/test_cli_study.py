@@ -115,3 +115,20 @@ def test_simulate_runs_simulated_operators_and_reports_them(tmp_path):
     result = RUN.invoke(study_app, ["report", str(folder), "--out", str(tmp_path / "r")], env=ENV)
     assert result.exit_code == 0, result.output
     assert "SIMULATED OPERATORS" in (tmp_path / "r" / "report.md").read_text()
+
+
+def test_simulate_hands_option_selects_and_refuses_in_one_line(tmp_path):
+    folder = tmp_path / "sim"
+    args = ["simulate", str(folder), "--participants", "1", "--trials", "1", "--task", "pour",
+            "--interface", "keyboard", "--time-limit", "2"]  # fmt: skip
+    result = RUN.invoke(study_app, [*args, "--hands", "robot"], env=ENV)
+    assert result.exit_code == 2 and result.output.strip().count("\n") == 0
+    assert "hands must be 'independent' or 'sim', got 'robot'" in result.output
+    assert not folder.exists()
+    result = RUN.invoke(study_app, [*args, "--hands", "sim"], env=ENV)
+    assert result.exit_code == 0, result.output
+    assert "sim hands" in result.output
+    assert 'hands = "sim"' in (folder / "study.toml").read_text()
+    result = RUN.invoke(study_app, [*args, "--overwrite"], env=ENV)
+    assert result.exit_code == 0 and "independent hands" in result.output
+    assert 'hands = "independent"' in (folder / "study.toml").read_text()

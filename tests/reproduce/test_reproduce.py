@@ -1,13 +1,18 @@
 """`wovenskin reproduce` end to end on its tiny size: one report with every section."""
 
 import json
+from dataclasses import asdict
 
 import pytest
 from typer.testing import CliRunner
 
 from wovenskin.cli import app
+from wovenskin.errors import ConfigError
+from wovenskin.reproduce import study
 from wovenskin.reproduce.paper import PAPER_TABLES, paper_reduction
-from wovenskin.reproduce.study import _differences
+from wovenskin.reproduce.report import reproduce
+from wovenskin.reproduce.study import _command, _differences
+from wovenskin.study.simulate import HANDS
 
 
 def test_the_papers_tables_and_reductions():
@@ -52,3 +57,13 @@ def test_tiny_report_end_to_end(tmp_path):
     assert (out / "study" / "study.toml").read_text().count("simulated = true") == 1
     again = CliRunner().invoke(app, ["reproduce", "--out", str(out), "--size", "tiny"])
     assert again.exit_code != 0 and "overwrite" in again.output.lower()
+
+
+def test_the_study_part_takes_the_hands_and_refuses_bad_ones_before_running(tmp_path):
+    assert study.TINY.hands == HANDS == "independent"
+    assert _command(study.TINY).endswith("--hands independent")
+    sim = study.StudyConfig(**{**asdict(study.TINY), "hands": "sim"})
+    assert _command(sim).endswith("--hands sim")
+    with pytest.raises(ConfigError, match="hands must be 'independent' or 'sim'"):
+        reproduce(tmp_path / "r", "tiny", hands="robot")
+    assert not (tmp_path / "r").exists()

@@ -1,15 +1,25 @@
 """Simulated studies: real trials by simulated operators, recorded as a person's, reproducible."""
 
 import json
+from typing import get_args
 
 import pytest
 
 from wovenskin.errors import ConfigError
 from wovenskin.operators.profiles import sample_profile
-from wovenskin.study.definition import Participant, load_study
+from wovenskin.study.definition import (
+    HANDS_SOURCES,
+    Participant,
+    SimulatedHands,
+    StudyDefinition,
+    load_study,
+    parse_study,
+)
 from wovenskin.study.reader import read_trials
 from wovenskin.study.report import SIMULATED_BANNER, write_report
 from wovenskin.study.simulate import (
+    HANDS,
+    SKINS,
     run_trial,
     simulate_study,
     simulated_participants,
@@ -78,3 +88,31 @@ def test_refuses_an_interface_it_has_no_hand_for_and_a_full_folder(tmp_path):
     (tmp_path / "full" / "f").write_text("x")
     with pytest.raises(Exception, match="full"):
         simulate_study(tmp_path / "full", participants=1, trials=1)
+
+
+def test_the_hands_are_checked_before_anything_is_written(tmp_path):
+    assert tuple(HANDS_SOURCES) == get_args(SimulatedHands) == tuple(SKINS)
+    assert HANDS == "independent"
+    with pytest.raises(ConfigError, match="hands must be 'independent' or 'sim', got 'robot'"):
+        simulate_study(tmp_path / "x", participants=1, trials=1, hands="robot")
+    assert not (tmp_path / "x").exists()
+    with pytest.raises(ValueError, match="only a simulated study"):
+        StudyDefinition(name="real", hands="sim")
+    with pytest.raises(ConfigError, match="hands"):
+        parse_study('name = "s"\nsimulated = true\nhands = "robot"\n')
+
+
+@pytest.mark.parametrize("hands", ["independent", "sim"])
+def test_a_skin_trial_records_whose_hands_touched(tmp_path, hands):
+    folder = tmp_path / hands
+    study, (run,) = simulate_study(
+        folder, participants=1, trials=1, tasks=("pour",), interfaces=("skin",),
+        time_limit_s=2.0, hands=hands,
+    )  # fmt: skip
+    assert study.hands == hands and load_study(folder).hands == hands
+    assert f'hands = "{hands}"' in (folder / "study.toml").read_text()
+    operators = json.loads((folder / "operators.json").read_text())
+    assert operators["hands"] == hands and operators["hands_source"] == HANDS_SOURCES[hands]
+    assert run.summary.outcome == "timeout" and run.summary.commands >= 1
+    report = write_report(folder).markdown.read_text()
+    assert f"Simulated hands: `{hands}`" in report and HANDS_SOURCES[hands] in report

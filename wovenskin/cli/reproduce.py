@@ -25,6 +25,9 @@ def reproduce(
     trials: int = typer.Option(
         None, min=1, help="Trials per task and interface (default: 10; --quick: 1)."
     ),
+    hands: str = typer.Option(
+        None, help="The simulated study's hands (default independent): independent or sim."
+    ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace a report in OUT."),
 ) -> None:
     """Regenerate the paper's evaluation in simulation beside its numbers, and what it lacks:
@@ -41,7 +44,8 @@ def reproduce(
     try:
         result = run(
             out, chosen, haart=haart, jobs=jobs, trials=trials, overwrite=overwrite,
-            command=command, log=lambda text: console.print(text, highlight=False, markup=False),
+            command=command, hands=hands,
+            log=lambda text: console.print(text, highlight=False, markup=False),
         )  # fmt: skip
     except StudyInterrupted as stopped:  # Ctrl-C in the simulated study: say what was kept
         err_console.print(f"interrupted: {stopped.message()}; no report written", markup=False)

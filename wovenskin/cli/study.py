@@ -19,6 +19,12 @@ study_app = typer.Typer(
 )
 
 DIR = typer.Argument(..., help="The study folder (holds study.toml).")
+HANDS_OPTION = typer.Option(
+    None,
+    help="Whose people and skins touch the skin (default independent): independent "
+    "(wovenskin.independent, strangers to the model) or sim (wovenskin.sim, the simulator "
+    "the model was trained on).",
+)
 
 
 @study_app.command("init")
@@ -130,6 +136,7 @@ def study_simulate(
     jobs: int = typer.Option(
         None, min=1, help="Trials run at once, in worker processes (default 1)."
     ),
+    hands: str = HANDS_OPTION,
     overwrite: bool = typer.Option(False, "--overwrite", help="Write into a non-empty folder."),
 ) -> None:
     """Run a whole study with SIMULATED operators (novices and experts with human timing)
@@ -143,12 +150,14 @@ def study_simulate(
     from wovenskin.cli.app import err_console
     from wovenskin.study.definition import TASKS, TIME_LIMIT_S
     from wovenskin.study.simulate import (
+        HANDS,
         INTERFACES,
         JOBS,
         OBJECTS,
         PARTICIPANTS,
         TRIALS_PER_CONDITION,
         StudyInterrupted,
+        check_hands,
         estimate_wall_s,
         simulate_study,
     )
@@ -161,13 +170,14 @@ def study_simulate(
     interface = interface or list(INTERFACES)
     objects = OBJECTS if objects is None else objects
     jobs = JOBS if jobs is None else jobs
+    hands = check_hands(HANDS if hands is None else hands)
     total = participants * trials * len(task) * len(interface)
     guess = estimate_wall_s(participants, trials, len(task), tuple(interface), jobs, time_limit)
     console.print(
         f"{quantity(total, 'simulated trial')} ({quantity(participants, 'operator')} x "
         f"{quantity(trials, 'trial')} x {quantity(len(task), 'task')} x "
-        f"{quantity(len(interface), 'interface')}), roughly {duration(guess)} with "
-        f"--jobs {jobs}; Ctrl-C stops and keeps the finished trials",
+        f"{quantity(len(interface), 'interface')}), {hands} hands, roughly "
+        f"{duration(guess)} with --jobs {jobs}; Ctrl-C stops and keeps the finished trials",
         highlight=False,
         soft_wrap=True,
     )
@@ -193,7 +203,7 @@ def study_simulate(
             study, runs = simulate_study(
                 directory, participants, seed, trials, tasks=tuple(task),
                 interfaces=tuple(interface), time_limit_s=time_limit, objects=objects,
-                model=model, jobs=jobs, overwrite=overwrite, progress=advance,
+                model=model, jobs=jobs, overwrite=overwrite, progress=advance, hands=hands,
             )  # fmt: skip
         except StudyInterrupted as stopped:
             bar.stop()

@@ -157,18 +157,35 @@ class SkinRenderer:
 
     def response(self, fingers: list[Finger]) -> np.ndarray:
         """``(n + tail, rows, cols)`` relative change of every channel during one touch."""
-        skin = self.skin
-        s = pressure_signal(fingers, self.layout, skin.gamma)
+        s = pressure_signal(fingers, self.layout, self.skin.gamma)
         s = np.concatenate([s, np.zeros((int(TAIL_S * self.fs), *s.shape[1:]))])
-        target = skin.gain * self.channel_gain * s / (1.0 + s / skin.saturation)
+        lagged, _ = self.lag(self.saturated(s))
+        return self.couple(lagged)
+
+    def saturated(self, s: np.ndarray) -> np.ndarray:
+        """The change each channel heads for under pressure signal ``s`` (steps 2-3)."""
+        skin = self.skin
+        return skin.gain * self.channel_gain * s / (1.0 + s / skin.saturation)
+
+    def lag(
+        self, target: np.ndarray, state: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The fabric's lag (step 4) of ``target`` from ``state`` (default: at rest), and
+        the state after its last frame (to go on from, frame block by frame block)."""
+        skin = self.skin
         lagged = np.empty_like(target)
         up = 1.0 - np.exp(-1.0 / (skin.tau_press_s * self.fs))
         down = 1.0 - np.exp(-1.0 / (skin.tau_release_s * self.fs))
-        state = np.zeros(target.shape[1:])
+        state = np.zeros(target.shape[1:]) if state is None else state
         for i in range(len(target)):
             step = target[i] - state
             state = state + np.where(step > 0, up, down) * step
             lagged[i] = state
+        return lagged, state
+
+    def couple(self, lagged: np.ndarray) -> np.ndarray:
+        """Crosstalk along rows and the dead channels (steps 5-6) of lagged changes."""
+        skin = self.skin
         row_total = lagged.sum(axis=2, keepdims=True)
         neighbours = np.zeros_like(lagged)
         neighbours[:, :, 1:] += lagged[:, :, :-1]

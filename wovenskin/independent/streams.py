@@ -13,7 +13,9 @@ What to perform is a list of *requests*: a class name (``swipe_up``), a swipe's 
 (``swipe_up:flick``, ``swipe_up:held`` for :data:`HELD_S`, ``swipe_up:held=3.5``), a
 push's (``push:smooth``, ``push:land_press``), an invalid kind (``invalid:palm``) or an
 idle gap (``idle:4``).  :func:`mixed_stream` draws a shuffled mixture of all of them;
-:func:`gesture_stream` renders one touch alone.  The same seed gives identical arrays.
+:func:`gesture_stream` renders one touch alone; :func:`perform_touch` performs one request
+by a given person, unrendered (a live skin renders it: :mod:`.live`).  The same seed gives
+identical arrays.
 
 A user's own gestures (:class:`~wovenskin.custom_gestures.CustomGesture`, passed as
 ``custom``) are requested by name and performed from their stroke scripts
@@ -118,6 +120,29 @@ def perform_request(
     if request.name == "push" and request.variant:
         return push(trial, layout, smooth=request.variant == "smooth")
     return perform(request.name, trial, layout)
+
+
+def perform_touch(
+    request: str,
+    person: Person,
+    rng: np.random.Generator,
+    *,
+    layout: SkinLayout | None = None,
+    sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
+    custom: Mapping[str, CustomGesture] | Sequence[CustomGesture] | None = None,
+) -> Touch:
+    """One touch of ``request`` (a class name, a variant, ``invalid``, a custom gesture's
+    name) by ``person``, its draws from ``rng``; what it cannot perform: one ConfigError."""
+    definitions = _custom_table(custom)
+    name = request.strip().partition(":")[0]
+    if name not in (*GESTURE_NAMES, INVALID, *definitions):
+        raise ConfigError(
+            f"the independent generator cannot perform {request!r}: name a gesture class of "
+            "docs/gestures.md, 'invalid' or a custom gesture it was given"
+        )
+    parsed = Request.parse(request, definitions)
+    layout = layout if layout is not None else SkinLayout()
+    return perform_request(parsed, Trial(person, rng, sample_rate_hz), layout, definitions)
 
 
 def render_stream(

@@ -12,8 +12,9 @@ operator's time and returns how many commands it sent:
 of the tool axis that best matches the base axis now; K per key press);
 :class:`PendantHand` points at the jog panel's buttons in the base frame (P per button,
 step mode for short moves: 10, 5 or 1 mm or deg a press, one command per mode change);
-:class:`SkinHand` performs the gesture of that tool axis on an
-:class:`~wovenskin.operators.skin_hand.OperatorSkin`, holds it while the arm moves and
+:class:`SkinHand` performs the gesture of that tool axis on an operator's skin
+(:class:`~wovenskin.operators.touch_skin.TouchSkin`: the hands and skins of
+:mod:`wovenskin.independent` or of :mod:`wovenskin.sim`), holds it while the arm moves and
 lifts it to stop; it watches the session's command and, when the recogniser read
 something else or nothing, lifts, thinks and tries again, as a person would.  A
 novice's tool-frame hand may start the wrong way (``wrong_direction``): the operator sees
@@ -32,7 +33,7 @@ from wovenskin.control.mapping import TwistAction
 from wovenskin.control.session_inputs import InputEvent
 from wovenskin.operators.profiles import OperatorProfile
 from wovenskin.operators.script import Plan, Sleep, Timeout, Until
-from wovenskin.operators.skin_hand import OperatorSkin
+from wovenskin.operators.touch_skin import TouchSkin
 from wovenskin.teleop.keyboard import Keyboard, key_map
 from wovenskin.teleop.pendant import Pendant
 
@@ -217,12 +218,12 @@ class PendantHand(Hand):
 
 
 class SkinHand(Hand):
-    """Gestures on an :class:`OperatorSkin`, a gripper button beside it (module docstring)."""
+    """Gestures on an operator's skin (a :class:`TouchSkin`), a gripper button beside it."""
 
     interface = "skin"
 
     def __init__(
-        self, session: Any, profile: OperatorProfile, rng: np.random.Generator, skin: OperatorSkin
+        self, session: Any, profile: OperatorProfile, rng: np.random.Generator, skin: TouchSkin
     ):
         super().__init__(session, profile, rng)
         self.skin = skin

@@ -1,44 +1,40 @@
-"""The skin a simulated operator's hand touches, rendered on the session's clock.
+"""The skin a simulated operator's hand touches: the simulator's skin and person.
 
-:class:`OperatorSkin` is a :class:`~wovenskin.skin.source.SkinSource` that renders its
-frames when the session polls it, ``block`` frames (50 ms) a poll, in the session's own
-thread: a simulated operator acting at session time sees its touch in the very next
-frames, and a run is the same for the same seeds (the dashboard's simulated skin renders
-on a thread of its own, paced to the wall clock).  The skin is drawn from the simulator's
-skins of typical response by default (a lab's working skin; the full range, responses
-150x apart, on request), touched by a simulated person's hand
-(:class:`~wovenskin.sim.person.Person`).
+:class:`OperatorSkin` is a :class:`~.touch_skin.TouchSkin` (rendered when the session
+polls it, ``block`` frames a poll; a touch held until lifted) whose skin is drawn from the
+simulator's skins of typical response by default (a lab's working skin; the full range,
+responses 150x apart, on request), touched by a simulated person's hand
+(:class:`~wovenskin.sim.person.Person`).  These are the very simulator the shipped model
+was trained on: ``wovenskin study simulate --hands sim``.  The hands of
+:mod:`wovenskin.independent` (:class:`~.independent_skin.IndependentSkin`) are strangers
+to it.
 
-:meth:`OperatorSkin.touch` performs a gesture as the person of :mod:`wovenskin.sim` does
-(landing, the pause after landing, the motion, the fingers resting), and keeps the fingers
-resting where the motion ended until :meth:`OperatorSkin.lift`, which plays the person's
-own lift-off: a held gesture, as an operator holds a swipe while the arm moves.
-Everything it renders goes through the session's conditioning and recogniser: a gesture
-the recogniser misreads costs the operator as it would cost a person.
+:meth:`~.touch_skin.TouchSkin.touch` performs a gesture as the person of
+:mod:`wovenskin.sim` does (landing, the pause after landing, the motion, the fingers
+resting), keeps the fingers resting until :meth:`~.touch_skin.TouchSkin.lift` and then
+plays the person's own lift-off.  Everything it renders goes through the session's
+conditioning and recogniser: a gesture the recogniser misreads costs the operator as it
+would cost a person.
 """
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
-from wovenskin.errors import ConfigError
+from wovenskin.operators.touch_skin import BLOCK_FRAMES, TouchSkin
 from wovenskin.sim.contact import ContactTrack
 from wovenskin.sim.motion import Performance
 from wovenskin.sim.performances import perform
 from wovenskin.sim.person import Person
 from wovenskin.sim.physics import SkinModel
 from wovenskin.sim.skin_physics import SkinPhysics
-from wovenskin.skin.frames import Frame, SkinInfo, SourceEvent, SourceStats
+from wovenskin.skin.frames import SkinInfo
 from wovenskin.skin.layout import DEFAULT_SAMPLE_RATE_HZ, SkinLayout
-from wovenskin.skin.source import DevicelessSource
 
-BLOCK_FRAMES = 10
-"""Frames rendered per poll (50 ms at 200 Hz)."""
+__all__ = ["BLOCK_FRAMES", "OperatorSkin"]
 
 
-class OperatorSkin(DevicelessSource):
+class OperatorSkin(TouchSkin):
     """A simulated skin touched by a simulated operator (module docstring)."""
 
     def __init__(
@@ -69,108 +65,28 @@ class OperatorSkin(DevicelessSource):
         self._rng = rng
         self._fs = float(sample_rate_hz)
         self._model = SkinModel(self.physics, self.layout, int(rng.integers(2**31)), self._fs)
-        self.block = max(1, int(block))
-        self._info = SkinInfo(
+        info = SkinInfo(
             rows=self.layout.rows, cols=self.layout.cols, sample_rate_hz=self._fs,
             firmware="wovenskin-operator-sim", device_id=f"operator-sim-{int(seed)}",
             source="sim", row_pitch_mm=self.layout.row_pitch_mm,
             col_pitch_mm=self.layout.col_pitch_mm,
         )  # fmt: skip
-        self._stats = SourceStats()
-        self._closed = self._started = False
-        self._queue: list[Frame | SourceEvent] = []
-        self._next = 0  # sequence number of the next frame
-        self._performance: Performance | None = None
-        self._done = 0  # frames of the performance rendered
-        self._hold_from = 0  # its first lift-off frame: the hold repeats the frame before
-        self._motion_end = 0  # the frame its motion ends (a flick lifts from there)
-        self._lifting = False
-        self.touches = 0  # gestures begun
+        self._ready(info, block, self._fs)
 
-    # -- what the operator does
+    # -- TouchSkin
 
-    def touch(self, gesture: str) -> Performance:
-        """Begin ``gesture`` (a class name) now; the fingers stay down until :meth:`lift`."""
-        if self._performance is not None:
-            raise ConfigError("the hand is on the skin: lift it first")
-        performance = perform(gesture, self.person, self._rng, self.layout,
-                              sample_rate_hz=self._fs)  # fmt: skip
-        self._performance, self._done, self._lifting = performance, 0, False
-        self._hold_from = int(round(performance.phases.lift_start_s * self._fs))
-        self._motion_end = min(
-            int(round(performance.phases.motion_end_s * self._fs)), self._hold_from
-        )
-        self.touches += 1
-        return performance
+    def _perform(self, gesture: str) -> Performance:
+        return perform(gesture, self.person, self._rng, self.layout, sample_rate_hz=self._fs)
 
-    def lift(self) -> None:
-        """Lift the hand: a held hand's lift-off plays from the next frame; a hand still
-        moving finishes its motion and lifts without the rest after it (a flick)."""
-        if self._performance is not None:
-            self._lifting = True
+    def _render_idle(self, n: int) -> np.ndarray:
+        return self._model.render_idle(n)
 
-    @property
-    def touching(self) -> bool:
-        """Whether a hand is on the skin or lifting off."""
-        return self._performance is not None
+    def _render_played(self, start: int, n: int) -> np.ndarray:
+        p = self._performance
+        return self._model.render(p.contacts, n, p.bursts, start)
 
-    @property
-    def holding(self) -> bool:
-        """Whether the gesture's motion is over and the fingers rest, held."""
-        return self._performance is not None and not self._lifting and self._done >= self._hold_from
-
-    @property
-    def stream_t(self) -> float:
-        """Stream time of the next frame (s)."""
-        return self._next / self._fs
-
-    # -- SkinSource
-
-    def start(self) -> None:
-        if self._started or self._closed:
-            return
-        self._open("simulated skin under a simulated operator's hand", time.monotonic())
-
-    def poll(self, timeout: float = 0.05) -> list[Frame | SourceEvent]:
-        if not self._started or self._closed:
-            return []
-        items, self._queue = self._queue, []
-        values = self._render(self.block)
-        now = time.monotonic()
-        for frame in values:
-            items.append(Frame(seq=self._next, t=self._next / self._fs, values=frame, t_host=now))
-            self._next += 1
-            self._stats.good_frames += 1
-        return items
-
-    # -- rendering
-
-    def _render(self, n: int) -> np.ndarray:
-        out = []
-        while n > 0:
-            piece = self._piece(n)
-            out.append(piece)
-            n -= len(piece)
-        return np.concatenate(out) if len(out) > 1 else out[0]
-
-    def _piece(self, n: int) -> np.ndarray:
-        performance = self._performance
-        if performance is None:
-            return self._model.render_idle(n)
-        if not self._lifting and self._done >= self._hold_from:
-            return self._model.render(_held(performance.contacts, self._hold_from - 1, n), n)
-        if self._lifting and self._motion_end <= self._done < self._hold_from:
-            self._done = self._hold_from  # the fingers stand where the motion ended: lift
-        if self._done < self._motion_end:
-            end = self._motion_end
-        else:
-            end = self._hold_from if not self._lifting else performance.n_frames
-        k = max(1, min(n, end - self._done))
-        frames = self._model.render(performance.contacts, k, performance.bursts, self._done)
-        self._done += k
-        if self._done >= performance.n_frames:
-            self._performance = None
-        return frames
+    def _render_held(self, frame: int, n: int) -> np.ndarray:
+        return self._model.render(_held(self._performance.contacts, frame, n), n)
 
 
 def _held(contacts: list[ContactTrack], frame: int, n: int) -> list[ContactTrack]:

@@ -30,6 +30,7 @@ from wovenskin.outputs import check_new_output
 from wovenskin.reproduce import recognition, study
 from wovenskin.reproduce.paper import PAPER_REDUCTION_TEXT
 from wovenskin.study.document import Block, Bullets, Heading, Text, to_html, to_markdown
+from wovenskin.study.simulate import check_hands
 
 
 @dataclass(frozen=True)
@@ -112,8 +113,10 @@ def reproduce(
     overwrite: bool = False,
     command: str = "",
     log: Callable[[str], None] = print,
+    hands: str | None = None,
 ) -> ReproduceResult:
-    """Run everything at ``config``'s size and write the report into ``out_dir``."""
+    """Run everything at ``config``'s size and write the report into ``out_dir``;
+    ``hands``: the simulated study's (default :data:`~wovenskin.study.simulate.HANDS`)."""
     if isinstance(config, str):
         if config not in CONFIGS:
             raise ConfigError(f"unknown report size {config!r}: use {', '.join(CONFIGS)}")
@@ -128,6 +131,8 @@ def reproduce(
         sim = study.StudyConfig(**{**asdict(sim), "jobs": jobs})
     if trials is not None:
         sim = study.StudyConfig(**{**asdict(sim), "trials": trials})
+    if hands is not None:
+        sim = study.StudyConfig(**{**asdict(sim), "hands": check_hands(hands)})
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")

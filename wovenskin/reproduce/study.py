@@ -24,11 +24,11 @@ import numpy as np
 
 from wovenskin.io import atomic_write_text
 from wovenskin.reproduce.paper import PAPER_PARTICIPANTS, PAPER_TABLES, paper_reduction
-from wovenskin.study.definition import TIME_LIMIT_S
+from wovenskin.study.definition import HANDS_SOURCES, TIME_LIMIT_S
 from wovenskin.study.document import Block, Bullets, Heading, Image, Table, Text
 from wovenskin.study.reader import TrialResult, read_trials
 from wovenskin.study.report import SIMULATED_BANNER, report_blocks, write_report
-from wovenskin.study.simulate import TrialRun, simulate_study
+from wovenskin.study.simulate import HANDS, TrialRun, simulate_study
 from wovenskin.study.tables import fmt, fmt_mean_std, reduction, summarise
 from wovenskin.wording import quantity
 
@@ -52,6 +52,7 @@ class StudyConfig:
     jobs: int = 2
     time_limit_s: float = TIME_LIMIT_S
     seed: int = 0
+    hands: str = HANDS  # whose people and skins touch the skin
 
 
 TINY = StudyConfig(
@@ -73,7 +74,7 @@ def _command(config: StudyConfig) -> str:
     return (
         f"wovenskin study simulate OUT/study --participants {config.participants} "
         f"--trials {config.trials} --seed {config.seed} {tasks} --time-limit "
-        f"{config.time_limit_s:g} --jobs {config.jobs}"
+        f"{config.time_limit_s:g} --jobs {config.jobs} --hands {config.hands}"
     )
 
 
@@ -187,7 +188,7 @@ def study_section(
     study, runs = simulate_study(
         folder, config.participants, config.seed, config.trials, tasks=config.tasks,
         interfaces=config.interfaces, time_limit_s=config.time_limit_s, jobs=config.jobs,
-        overwrite=True, progress=progress,
+        overwrite=True, progress=progress, hands=config.hands,
     )  # fmt: skip
     wall = time.perf_counter() - started
     rows = [
@@ -210,10 +211,11 @@ def study_section(
             "trial is a fresh session on the simulated TM5-900 with its gripper; the "
             "operator's timing (thinking, reaction, key presses, pointing, gestures) is drawn "
             "per person from the keystroke-level model and reaction-time literature "
-            "(docs/operators.md); on the skin every gesture is rendered by the simulated "
-            "skin and goes through conditioning, the recogniser and the arbiter, so a "
-            "misread gesture costs the operator time. A pick-and-place trial moves one "
-            "object (cube, cylinder, prism in turn), as the paper's trial does."
+            "(docs/operators.md); on the skin every gesture is performed by the "
+            f"{HANDS_SOURCES[config.hands]} (hands `{config.hands}`) and goes through "
+            "conditioning, the recogniser and the arbiter, so a misread gesture costs the "
+            "operator time. A pick-and-place trial moves one object (cube, cylinder, prism "
+            "in turn), as the paper's trial does."
         ),
     ]
     figures: dict[str, Any] = {"config": asdict(config), "trials": len(runs), "wall_s": wall}

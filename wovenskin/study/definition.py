@@ -25,10 +25,17 @@ Task = Literal["pick_place", "pour"]
 Interface = Literal["skin", "skin_registered", "keyboard", "pendant"]
 Expertise = Literal["novice", "intermediate", "expert"]
 Questionnaire = Literal["nasa_tlx", "sus"]
+SimulatedHands = Literal["independent", "sim"]
 
 TASKS: tuple[str, ...] = ("pick_place", "pour")
 INTERFACES: tuple[str, ...] = ("skin", "skin_registered", "keyboard", "pendant")
 EXPERTISE: tuple[str, ...] = ("novice", "intermediate", "expert")
+HANDS_SOURCES: dict[str, str] = {
+    "independent": "people and skins of wovenskin.independent, written apart from the "
+    "simulator the recogniser was trained on",
+    "sim": "people and skins of wovenskin.sim, the simulator the recogniser was trained on",
+}
+"""Whose people and skins a simulated study's operators touch the skin with, in words."""
 
 # A participant id names a folder: letters, digits, '-' and '_' only.
 _ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
@@ -69,6 +76,8 @@ class StudyDefinition:
     synthetic: bool = False  # set by `wovenskin study synthetic`: nothing in it was measured
     # set by `wovenskin study simulate`: simulated operators on the simulated arm and skin
     simulated: bool = False
+    # set by `wovenskin study simulate`: whose people and skins its operators touched
+    hands: SimulatedHands | None = None
     participants: tuple[Participant, ...] = ()
 
     def __post_init__(self) -> None:
@@ -80,6 +89,8 @@ class StudyDefinition:
                 raise ValueError(f"{key}: each value once, got {list(values)}")
         if not self.tasks or not self.interfaces:
             raise ValueError("tasks and interfaces: at least one each")
+        if self.hands is not None and not self.simulated:
+            raise ValueError("hands: only a simulated study (simulated = true) has them")
         ids = [p.id for p in self.participants]
         if len(set(ids)) != len(ids):
             twice = sorted({i for i in ids if ids.count(i) > 1})

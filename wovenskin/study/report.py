@@ -9,7 +9,7 @@ from pathlib import Path
 
 from wovenskin.io import atomic_write_text
 from wovenskin.outputs import check_new_output
-from wovenskin.study.definition import StudyDefinition, load_study
+from wovenskin.study.definition import HANDS_SOURCES, StudyDefinition, load_study
 from wovenskin.study.document import (
     Block,
     Bullets,
@@ -210,6 +210,16 @@ def _questionnaire_blocks(rows: list[QuestionnaireRow], interfaces) -> list[Bloc
     return blocks
 
 
+def hands_text(study: StudyDefinition) -> str:
+    """One sentence: whose people and skins a simulated study's operators touched."""
+    if study.hands is None:
+        return "Simulated hands: not recorded in study.toml (no `hands` setting)."
+    return (
+        f"Simulated hands: `{study.hands}`: on the skin the operators touched with the "
+        f"{HANDS_SOURCES[study.hands]}."
+    )
+
+
 def report_blocks(
     study: StudyDefinition,
     trials: list[TrialResult],
@@ -223,7 +233,7 @@ def report_blocks(
     if synthetic:
         blocks.append(Text(SYNTHETIC_BANNER))
     if study.simulated:
-        blocks.append(Text(SIMULATED_BANNER))
+        blocks += [Text(SIMULATED_BANNER), Text(hands_text(study))]
     n_people = len({t.participant for t in trials})
     blocks.append(
         Text(

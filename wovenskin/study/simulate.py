@@ -7,11 +7,15 @@ fresh control session on the task's scene (the simulated TM5-900 with its grippe
 arm in its initial pose, run as fast as this computer can: a
 :class:`~wovenskin.operators.operator.SimulatedOperator` with a novice's or an expert's
 profile (:mod:`wovenskin.operators.profiles`) works through the interface's hand; on the
-skin it performs gestures on an :class:`~wovenskin.operators.skin_hand.OperatorSkin` (a
-skin drawn per participant from the simulator's full range) that go through the whole
-pipeline: conditioning, the recogniser, the arbiter, the mapping, the safety layer.  Trials
-are recorded by :class:`~wovenskin.study.session.StudyTrials` as the dashboard records a
-person's, so ``wovenskin study report`` reads them as it reads a real study.
+skin it performs gestures that go through the whole pipeline: conditioning, the
+recogniser, the arbiter, the mapping, the safety layer.  ``hands`` says whose people and
+skins those gestures come from (one per participant): ``independent`` (the default,
+:data:`HANDS`: :class:`~wovenskin.operators.independent_skin.IndependentSkin`, people and
+skins of :mod:`wovenskin.independent`, strangers to the model) or ``sim``
+(:class:`~wovenskin.operators.skin_hand.OperatorSkin`, the simulator the model was trained
+on, kinder to the recogniser than a stranger's hand).  Trials are recorded by
+:class:`~wovenskin.study.session.StudyTrials` as the dashboard records a person's, so
+``wovenskin study report`` reads them as it reads a real study.
 
 A pick-and-place trial moves one object, as the paper's does (the cube, the cylinder and
 the prism in turn; ``objects="all"`` seats all three in every trial).
@@ -39,6 +43,7 @@ import numpy as np
 from wovenskin.errors import ConfigError
 from wovenskin.io import atomic_write_text
 from wovenskin.operators.hands import KeyboardHand, PendantHand, SkinHand
+from wovenskin.operators.independent_skin import IndependentSkin
 from wovenskin.operators.operator import SimulatedOperator
 from wovenskin.operators.profiles import OperatorProfile, sample_profile
 from wovenskin.operators.script import ScriptRunner
@@ -47,6 +52,7 @@ from wovenskin.outputs import OutputExistsError, check_writable
 from wovenskin.runtime.session import open_session
 from wovenskin.study.counterbalance import write_plan
 from wovenskin.study.definition import (
+    HANDS_SOURCES,
     STUDY_FILE,
     TASKS,
     TIME_LIMIT_S,
@@ -69,6 +75,11 @@ from wovenskin.tasks.shapes import SHAPES
 
 INTERFACES = ("skin", "keyboard", "pendant")
 OBJECTS = "one"  # pick_place: one object a trial (the paper's), or "all"
+HANDS = "independent"
+"""Whose people and skins the operators touch the skin with by default (the one home of
+``--hands``): ``independent`` (:mod:`wovenskin.independent`) or ``sim``."""
+SKINS = {"independent": IndependentSkin, "sim": OperatorSkin}
+"""The operator's skin of each kind of hands (:data:`~wovenskin.study.definition.HANDS_SOURCES`)."""
 JOBS = 1  # trials run at once (worker processes)
 OPERATORS_FILE = "operators.json"
 PARTICIPANTS = 6
@@ -116,6 +127,14 @@ class StudyInterrupted(KeyboardInterrupt):
         )
 
 
+def check_hands(hands: str) -> str:
+    """``hands`` if simulated operators have such hands; one ConfigError line otherwise."""
+    if hands not in HANDS_SOURCES:
+        known = " or ".join(repr(h) for h in HANDS_SOURCES)
+        raise ConfigError(f"hands must be {known}, got {hands!r}")
+    return hands
+
+
 def trial_objects(trial: int, objects: str) -> tuple[str, ...] | None:
     """The shapes of pick-and-place trial ``trial``: one, in turn, or all (``None``)."""
     if objects == "all":
@@ -139,20 +158,23 @@ def run_trial(
     overwrite: bool = False,
     log: Callable[[str], None] | None = None,
     stopped: Callable[[], bool] | None = None,
+    hands: str = HANDS,
 ) -> TrialRun:
     """Run trial ``trial`` of one condition in a fresh session; returns its summary.
+    ``hands``: whose people and skins touch the skin (:data:`HANDS`).
 
     When ``stopped()`` turns true the session ends at its next step and, unless the trial
     had just ended, its unfinished folder is removed and :class:`TrialStopped` raised."""
     if interface not in INTERFACES:
         raise ConfigError(f"simulated operators use {', '.join(INTERFACES)}, not {interface!r}")
+    skin_of_hands = SKINS[check_hands(hands)]
     started = time.perf_counter()
     options = {"objects": trial_objects(trial, objects)} if task_name == "pick_place" else {}
     task = make_task(task_name, **options)
     seed = profile.seed * 1000 + trial
     skin: Any = "none:speed=0"
     if interface == "skin":  # the participant's skin and hand; this trial's performances
-        skin = OperatorSkin(profile.seed, gesture_seed=seed)
+        skin = skin_of_hands(profile.seed, gesture_seed=seed)
     hooks: list[Callable[[Any], None]] = []
     session = open_session(
         skin, "sim", model, task=task, on_tick=lambda s: hooks[0](s) if hooks else None
@@ -253,6 +275,7 @@ class _Job:
     objects: str
     model: str | None
     overwrite: bool
+    hands: str = HANDS
 
 
 def _run_job(job: _Job, stopped: Callable[[], bool] | None = None) -> TrialRun | None:
@@ -260,7 +283,7 @@ def _run_job(job: _Job, stopped: Callable[[], bool] | None = None) -> TrialRun |
         return run_trial(
             job.folder, job.participant, job.profile, job.task, job.interface, job.trial,
             time_limit_s=job.time_limit_s, objects=job.objects, model=job.model,
-            overwrite=job.overwrite, stopped=stopped,
+            overwrite=job.overwrite, stopped=stopped, hands=job.hands,
         )  # fmt: skip
     except TrialStopped:
         return None
@@ -290,9 +313,12 @@ def simulate_study(
     jobs: int = JOBS,
     overwrite: bool = False,
     progress: Callable[[TrialRun], None] | None = None,
+    hands: str = HANDS,
 ) -> tuple[StudyDefinition, list[TrialRun]]:
     """Run a whole study of simulated operators into the new folder ``directory``
-    (module docstring); ``jobs`` trials run at once in worker processes.
+    (module docstring); ``jobs`` trials run at once in worker processes; ``hands``: whose
+    people and skins touch the skin (:data:`HANDS`, recorded in ``study.toml``,
+    ``operators.json`` and so in the report).
 
     Ctrl-C stops it within a step of every running trial: the trials cut short are
     removed, no further trial starts, and :class:`StudyInterrupted` says what was kept."""
@@ -301,6 +327,7 @@ def simulate_study(
     for interface in interfaces:
         if interface not in INTERFACES:
             raise ConfigError(f"simulated operators use {', '.join(INTERFACES)}, not {interface!r}")
+    check_hands(hands)
     folder = check_writable(directory, folder=True)  # refused now, not after the trials
     if folder.exists() and any(folder.iterdir()) and not overwrite:
         raise OutputExistsError(folder, "files")
@@ -313,11 +340,12 @@ def simulate_study(
         time_limit_s=time_limit_s,
         questionnaires=(),
         simulated=True,
+        hands=hands,  # type: ignore[arg-type]
         participants=tuple(p for p, _ in people),
     )
     flag = StopFlag()
     with ctrl_c_stops(flag):  # Ctrl-C from here on stops the study cleanly
-        work = _write_study(folder, study, people, seed, objects, model, overwrite)
+        work = _write_study(folder, study, people, seed, objects, model, overwrite, hands)
         runs = run_jobs(work, _run_job, jobs, flag, progress)
     if flag():
         for job in work:
@@ -334,6 +362,7 @@ def _write_study(
     objects: str,
     model: str | Path | None,
     overwrite: bool,
+    hands: str,
 ) -> list[_Job]:
     """Write the study's files (definition, banner, operators, plan); its trials, in order."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -343,13 +372,16 @@ def _write_study(
     atomic_write_text(
         folder / "SIMULATED.md",
         "Every trial in this folder was run by a simulated operator (wovenskin.operators) on "
-        "the simulated arm and skin by `wovenskin study simulate`; no person took part.\n",
+        "the simulated arm and skin by `wovenskin study simulate`; no person took part. "
+        f"On the skin they touched with the {HANDS_SOURCES[hands]} (hands = {hands}).\n",
     )
     info = {
         "simulated": True,
         "seed": seed,
         "objects": objects,
         "model": str(model) if model is not None else "shipped",
+        "hands": hands,
+        "hands_source": HANDS_SOURCES[hands],
         "operators": [profile.to_dict() for _, profile in people],
     }
     atomic_write_text(folder / OPERATORS_FILE, json.dumps(info, indent=2) + "\n")
@@ -368,6 +400,7 @@ def _write_study(
             objects,
             None if model is None else str(model),
             overwrite,
+            hands,
         )  # fmt: skip
         for step in steps
         for n in range(1, step.trials + 1)

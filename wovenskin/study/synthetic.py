@@ -57,6 +57,7 @@ def study_text(study: StudyDefinition, header: str = SYNTHETIC_HEADER) -> str:
         f"trials_per_condition = {study.trials_per_condition}",
         f"time_limit_s = {study.time_limit_s!r}",
         f"questionnaires = {list(study.questionnaires)}".replace("'", '"'),
+        *([f'hands = "{study.hands}"'] if study.hands else []),
         "",
     ]
     return "\n".join(lines) + "\n".join(participant_block(p) + "\n" for p in study.participants)
