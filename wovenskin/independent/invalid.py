@@ -144,6 +144,12 @@ def brush(trial: Trial, layout: SkinLayout) -> Touch:
     return _touch("brush", [patch], fs, {"speed_mm_s": speed, "force_n": force})
 
 
+def _moving_finger(trial: Trial, t: np.ndarray, ramp: float, motion: float) -> Finger:
+    """One fingertip down from the first frame, moving for ``motion`` s, its force wobbling."""
+    force = trial.force() * envelope(t, 0.0, ramp, motion + ramp, ramp)
+    return trial.finger(t, force * trial.modulation(len(t)))
+
+
 def rub(trial: Trial, layout: SkinLayout) -> Touch:
     rng, fs = trial.rng, trial.fs
     strokes = int(rng.integers(2, 7))
@@ -152,8 +158,7 @@ def rub(trial: Trial, layout: SkinLayout) -> Touch:
     ramp = trial.ramp()
     motion = strokes / rate
     t = frame_times(motion + 2 * ramp + 0.05, fs)
-    finger = trial.finger(t, trial.force() * envelope(t, 0.0, ramp, motion + ramp, ramp)
-                          * trial.modulation(len(t)))  # fmt: skip
+    finger = _moving_finger(trial, t, ramp, motion)
     tau = np.clip((t - ramp) / motion, 0.0, 1.0)
     uneven = 1.0 + 0.25 * rng.standard_normal(strokes + 1)
     k = np.minimum((tau * strokes).astype(int), strokes - 1)
@@ -193,8 +198,7 @@ def scribble(trial: Trial, layout: SkinLayout) -> Touch:
             heading += 0.2 * np.angle(np.exp(1j * (inward - heading)))
         step = speed / fs if moving else 0.0
         x[i], y[i] = x[i - 1] + step * np.cos(heading), y[i - 1] + step * np.sin(heading)
-    finger = trial.finger(t, trial.force() * envelope(t, 0.0, ramp, motion + ramp, ramp)
-                          * trial.modulation(len(t)))  # fmt: skip
+    finger = _moving_finger(trial, t, ramp, motion)
     finger.x, finger.y = x, y
     fit_to_skin([finger], layout, rng)
     return _touch("scribble", [finger], fs, {"speed_mm_s": speed, "motion_s": motion})
