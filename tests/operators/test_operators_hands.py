@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from wovenskin.operators.hands import KeyboardHand, PendantHand, SkinHand, flip, tool_command
+from wovenskin.operators.independent_skin import IndependentSkin
 from wovenskin.operators.profiles import sample_profile
 from wovenskin.operators.script import ScriptRunner
 from wovenskin.operators.skin_hand import OperatorSkin
@@ -78,8 +79,11 @@ def test_pendant_nudges_step_by_its_increments_and_count_the_mode_change():
         session.close()
 
 
-def test_a_skin_gesture_is_recognised_held_and_lifted():
-    skin = OperatorSkin(11)
+@pytest.mark.parametrize(
+    "make_skin", [lambda: OperatorSkin(11), lambda: IndependentSkin(0)], ids=["sim", "independent"]
+)
+def test_a_skin_gesture_is_recognised_held_and_lifted(make_skin):
+    skin = make_skin()
     session = _session(skin)
     profile = type(sample_profile("E", "expert", 4))(
         **{**sample_profile("E", "expert", 4).to_dict(), "wrong_direction": 0.0}

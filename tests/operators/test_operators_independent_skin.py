@@ -5,15 +5,10 @@ import pytest
 
 from wovenskin.errors import ConfigError
 from wovenskin.independent import person_of, skin_of
-from wovenskin.operators.hands import SkinHand, tool_command
 from wovenskin.operators.independent_skin import IndependentSkin
-from wovenskin.operators.profiles import sample_profile
-from wovenskin.operators.script import ScriptRunner
 from wovenskin.operators.touch_skin import BLOCK_FRAMES
-from wovenskin.runtime.session import open_session
 from wovenskin.signal.live_skin import LiveSkin
 from wovenskin.skin.frames import Frame
-from wovenskin.tasks import make_task
 
 
 def _frames(skin: IndependentSkin, polls: int) -> np.ndarray:
@@ -104,29 +99,3 @@ def test_what_it_cannot_perform_is_one_config_error_line():
     skin.touch("push")
     with pytest.raises(ConfigError, match="lift it first"):
         skin.touch("push")
-
-
-def test_a_gesture_on_a_session_is_recognised_held_and_lifted():
-    skin = IndependentSkin(0)
-    session = open_session(skin, "sim", None, task=make_task("pick_place", objects=("cube",)))
-    session.run(seconds=0.6)
-    drawn = sample_profile("E", "expert", 4)
-    profile = type(drawn)(**{**drawn.to_dict(), "wrong_direction": 0.0})
-    hand = SkinHand(session, profile, np.random.default_rng(0), skin)
-    session.add_input(hand)
-    try:
-        z0 = session.state.robot.tcp.position[2]
-        runner = ScriptRunner()
-        runner.start(hand.press("z", -1), session.now)
-        end = session.now + 3.0
-        while session.now < end:
-            session.run(seconds=0.02)
-            runner.tick(session.now)
-        assert runner.result == 1 and skin.touching
-        assert session.state.gesture == hand.gestures[tool_command(session, "z", -1)]
-        assert session.state.robot.tcp.position[2] < z0 - 0.02
-        hand.release_now()
-        session.run(seconds=1.5)
-        assert not skin.touching and session.state.gesture is None
-    finally:
-        session.close()

@@ -3,8 +3,8 @@
 :class:`~wovenskin.recognition.pipeline.LivePipeline` reads a whole block of frames at
 once, and a control session then ticks through them one by one; a view of one tick (a
 ROS 2 ``tracks`` cloud beside that tick's contacts) needs the tracks after *that* frame,
-not after the block's last.  :func:`read_touch` steps the touch reader frame by frame (as
-:meth:`~wovenskin.recognition.touch_reader.TouchRecognizer.run` does) and notes the
+not after the block's last.  :func:`read_touch` runs the touch reader
+(:meth:`~wovenskin.recognition.touch_reader.TouchRecognizer.run`) and notes the
 tracks after each frame in a :class:`FrameTracks`, which keeps the last
 :data:`KEEP_FRAMES` of them (copies: the tracker moves its tracks in place).
 """
@@ -13,10 +13,10 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 
+from wovenskin.recognition.touch_reader import TouchRecognizer
 from wovenskin.tracking.tracker import Track
 
 KEEP_FRAMES = 1024
@@ -51,7 +51,7 @@ class FrameTracks:
 
 
 def read_touch(
-    touch: Any,
+    touch: TouchRecognizer,
     history: FrameTracks,
     t: np.ndarray,
     frames: np.ndarray,
@@ -61,9 +61,8 @@ def read_touch(
 ) -> np.ndarray:
     """The touch reader's ``(N, K)`` readings of ``N`` frames at times ``t``, its tracks
     after each frame noted in ``history``."""
-    out = np.empty((len(t), len(touch.class_names)), dtype=np.float32)
-    active, flags = np.asarray(active), np.asarray(touched, dtype=bool).reshape(-1)
-    for i in range(len(t)):
-        out[i] = touch.step(frames[i], active[i], bool(flags[i]), probabilities[i])
-        history.add(float(t[i]), touch.tracks)
-    return out
+    times = np.asarray(t, dtype=np.float64)
+    return touch.run(
+        frames, np.asarray(active), touched, probabilities,
+        after=lambda i: history.add(float(times[i]), touch.tracks),
+    )  # fmt: skip

@@ -79,8 +79,6 @@ _REGION_STRUCTURE = np.zeros((3, 3, 3), dtype=bool)
 _REGION_STRUCTURE[1] = True  # 8 neighbours within a frame, never across frames
 
 
-
-
 def touch_features(
     signal: np.ndarray,
     active: np.ndarray,

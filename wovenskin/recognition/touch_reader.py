@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -283,12 +284,15 @@ class TouchRecognizer:
         active: np.ndarray,
         touched: np.ndarray,
         probabilities: np.ndarray,
+        after: Callable[[int], None] | None = None,
     ) -> np.ndarray:
         """Many frames: ``(N, R, C)`` tracking frames and masks, ``(N,)`` flags and ``(N, K)``
-        network rows; returns ``(N, K)`` readings."""
+        network rows; returns ``(N, K)`` readings. ``after(i)`` runs after frame ``i``."""
         n = frames.shape[0]
         out = np.empty((n, len(self.class_names)), dtype=np.float32)
         flags = np.asarray(touched, dtype=bool).reshape(-1)
         for i in range(n):
             out[i] = self.step(frames[i], active[i], bool(flags[i]), probabilities[i])
+            if after is not None:
+                after(i)
         return out
