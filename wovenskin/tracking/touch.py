@@ -23,8 +23,10 @@ signal, its active mask, the debounced ``touched`` flag) and keeps, for the curr
   circle, and counts nothing): about 2 pi a turn for a circle, near 0 for a straight
   stroke.  Positive is clockwise as the user sees the
   skin (from +x toward +y, y pointing down);
-- *pressure*: the total strength now against ``press_span_s`` ago (a press rises, a
-  landed finger holds steady);
+- *pressure*: the total strength now against the least it was over the last
+  ``press_span_s``, counting only frames at least ``press_settle_s`` into the touch (a
+  press rises, slowly or quickly; a landed finger holds steady; the landing's own ramp is
+  no press);
 - *fingers*: the fingertips of :mod:`~wovenskin.tracking.fingertips` per frame, the most
   that were present together for ``sustain_s``, and the mean spread of the strongest blob
   along its major axis over steady frames (two fingertips side by side make one blob
@@ -66,10 +68,12 @@ class TouchSettings:
     path_step_mm: float = 2.0  # the path is measured in steps of at least this
     turn_step_mm: float = 5.0  # the heading is taken over steps of at least this
     max_step_turn_deg: float = 60.0  # a step turning more counts no turn (not a circle's)
-    press_span_s: float = 0.1
+    press_span_s: float = 0.4
+    press_settle_s: float = 0.1
     sustain_s: float = 0.02
     settle_s: float = 0.02  # frames after the first contact left out of the blob spread
     count_settle_s: float = 0.03  # after more peaks than ever in the touch: not steady
+    rebase_fingers: int = 2  # a rise of the sustained count up to this restarts the motion
     fingertips: FingertipSettings = field(default_factory=FingertipSettings)
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
 
@@ -80,7 +84,7 @@ class TouchSettings:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value!r}")
-        for name in ("sustain_s", "settle_s", "count_settle_s"):
+        for name in ("sustain_s", "settle_s", "count_settle_s", "press_settle_s"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
                 raise ConfigError(f"{name} must be a number >= 0, got {value!r}")
@@ -104,7 +108,7 @@ class TouchState:
     radius_min: float = math.inf  # smallest / largest rms radius over steady frames
     radius_max: float = 0.0
     turning: float = 0.0  # signed, clockwise positive
-    press_ratio: float = 1.0  # strength now / strength press_span_s ago (1 before)
+    press_ratio: float = 1.0  # strength now / least over press_span_s (1 before)
     max_press_ratio: float = 1.0
     peak_strength: float = 0.0
     fingertips: int = 0  # fingertips now
@@ -155,6 +159,7 @@ class TouchReader:
         self.settings = settings or TouchSettings()
         s = self.settings
         self._press_span = max(1, int(round(s.press_span_s * self.rate)))
+        self._press_settle = int(round(s.press_settle_s * self.rate))
         self._sustain = max(1, int(round(s.sustain_s * self.rate)))
         self._settle = int(round(s.settle_s * self.rate))
         self._settle_frames = int(round(s.count_settle_s * self.rate))
@@ -171,7 +176,7 @@ class TouchReader:
         self.state = TouchState()
         self.tracker.reset()
         self._prev: tuple[float, float, float, float] | None = None  # y, x, radius, strength
-        self._strengths: deque[float] = deque(maxlen=self._press_span + 1)
+        self._strengths: deque[tuple[int, float]] = deque()  # running minimum (frame, strength)
         self._heading: tuple[float, float] | None = None
         self._runs: dict[int, int] = {}
         self._major_sum = 0.0
@@ -198,7 +203,7 @@ class TouchReader:
         weights = np.maximum(inside - RELATIVE_FLOOR * top, 0.0)
         total = float(weights.sum())
         if total <= 0.0:
-            self._strengths.append(0.0)
+            self._press(0.0)
             st.contacts = None
             st.fingertips = 0
             st.tracks = self.tracker.step(None)
@@ -250,19 +255,41 @@ class TouchReader:
         self._prev = (y, x, radius, strength)
         st.y, st.x, st.radius, st.strength = y, x, radius, strength
         st.peak_strength = max(st.peak_strength, strength)
-        self._strengths.append(strength)
-        if len(self._strengths) > self._press_span:
-            before = self._strengths[0]
-            st.press_ratio = strength / before if before > 0 else 1.0
-            st.max_press_ratio = max(st.max_press_ratio, st.press_ratio)
+        self._press(strength)
         st.contacts = contacts
         st.tracks = self.tracker.step(contacts)
         st.max_tracks = max(st.max_tracks, len(st.tracks))
         self._most_peaks = max(self._most_peaks, contacts.peak_count)
+        before = st.sustained_fingertips
         self._fingers(contacts, steady)
+        if before < st.sustained_fingertips <= self.settings.rebase_fingers and before:
+            self._rebase(y, x)
         st.max_channels = max(st.max_channels, int(active.sum()))
         st.max_blobs = max(st.max_blobs, len(contacts.blobs))
         return st
+
+    def _press(self, strength: float) -> None:
+        """The pressure's rise: ``strength`` against the least over the span (module doc)."""
+        st = self.state
+        if st.frames <= self._press_settle:
+            return
+        window = self._strengths
+        while window and window[-1][1] >= strength:
+            window.pop()
+        window.append((st.frames, strength))
+        while window[0][0] <= st.frames - self._press_span:
+            window.popleft()
+        least = window[0][1]
+        st.press_ratio = strength / least if least > 0 else 1.0
+        st.max_press_ratio = max(st.max_press_ratio, st.press_ratio)
+
+    def _rebase(self, y: float, x: float) -> None:
+        """Restart the coherent motion here: a finger joined the touch, and what the
+        centroid did while it landed is no motion of the fingers."""
+        st = self.state
+        st.dy = st.dx = st.path = st.max_travel = st.turning = 0.0
+        self._anchor = self._turn_anchor = (y, x)
+        self._heading = None
 
     def _turn(self, vy: float, vx: float) -> None:
         """Add the turn from the previous path step's heading to this step's ``(vy, vx)``."""
