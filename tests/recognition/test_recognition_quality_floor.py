@@ -79,8 +79,9 @@ def test_shipped_model_keeps_its_quality_on_simulated_streams(recognizer, reader
 
 @pytest.mark.parametrize("reader", sorted(INDEPENDENT_FLOORS))
 def test_shipped_model_keeps_its_quality_on_independent_streams(recognizer, reader) -> None:
-    """Measured: touch 24 of 27 events, F1 0.923, 1 false activation (0.50/min); window
-    25 of 27, F1 0.962, none."""
+    """Measured 2026-12-07 (the streams hold rubs, scribbles and slides since): touch 25 of
+    28 events, F1 0.909, 2 false activations (1.00/min); window 25 of 28, F1 0.926,
+    0.50/min."""
     scores = _scores(recognizer, [mixed_stream(SECONDS, seed) for seed in SEEDS], reader)
     least_f1, most_false = INDEPENDENT_FLOORS[reader]
     assert scores.n_events == 28, _report(scores)

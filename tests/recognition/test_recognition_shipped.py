@@ -12,6 +12,7 @@ from wovenskin.recognition.pipeline import (
     arbiter_settings_for_model,
     conditioning_for_model,
     load_recognizer,
+    pipeline_settings_for_model,
 )
 from wovenskin.recognition.shipped import (
     ModelNotFoundError,
@@ -33,6 +34,17 @@ def test_default_model_covers_the_gesture_vocabulary_and_its_conditioning() -> N
     config = conditioning_for_model(recognizer)
     assert config is not None and config.sample_rate_hz == 200.0
     assert 0.0 < arbiter_settings_for_model(recognizer).min_probability < 1.0
+
+
+def test_the_shipped_touch_reader_runs_the_network_on_every_fourth_window() -> None:
+    """The touch reader averages the windows over the whole touch: every fourth window
+    scored the same on the bench streams and halves the network's share of the live path
+    (docs/benchmarks.md); the window reader keeps every window, and an option wins."""
+    recognizer = load_recognizer(None)
+    assert pipeline_settings_for_model(recognizer).reader == "touch"
+    assert pipeline_settings_for_model(recognizer).every == 4
+    assert pipeline_settings_for_model(recognizer, reader="window").every == 1
+    assert pipeline_settings_for_model(recognizer, every=1).every == 1
 
 
 def test_default_model_gives_probabilities_for_a_window() -> None:

@@ -14,6 +14,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis.extra import numpy as hnp
 from paths import REPO
 
 from wovenskin.errors import ConfigError
@@ -214,3 +216,14 @@ def test_raw_noise_comes_from_the_calibration():
     np.testing.assert_allclose(raw_noise(noise, step, 16), 1e-3 / np.sqrt(2))
     with pytest.raises(ValueError, match="grids"):
         LiftDetector(np.zeros((2, 2)), np.ones((3, 3), bool), LiftSettings())
+
+
+@given(hnp.arrays(bool, hnp.array_shapes(min_dims=3, max_dims=3, min_side=1, max_side=12)))
+@settings(max_examples=200, deadline=None)
+def test_the_grown_mask_is_scipys_8_neighbour_dilation_within_each_frame(mask) -> None:
+    from scipy import ndimage
+
+    from wovenskin.signal.lift import _grown
+
+    expected = ndimage.binary_dilation(mask, structure=np.ones((1, 3, 3), dtype=bool))
+    np.testing.assert_array_equal(_grown(mask), expected)

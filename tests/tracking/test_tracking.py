@@ -95,3 +95,38 @@ def test_a_press_in_place_raises_the_pressure_ratio_and_a_lift_resets() -> None:
     assert reader.state.max_press_ratio > 1.3 and reader.state.max_travel < 2.0
     assert reader.step(np.zeros((ROWS, COLS)), np.zeros((ROWS, COLS), bool), False) is None
     assert reader.state.frames == 0
+
+
+def test_a_slow_press_counts_its_whole_rise_and_a_landing_ramp_is_no_press() -> None:
+    """The rise is taken against the least pressure of the last press_span_s (0.4 s): a
+    press that takes 0.3 s to double reads about 2, where 0.1 s ago it was only 1.3."""
+    settled = [0.03] * 40  # 0.2 s after the landing, steady
+    slow = list(np.linspace(0.03, 0.06, 60))  # doubles over 0.3 s
+    reader = _read([[(63.0, 45.0)]] * 100, amps=settled + slow)
+    assert reader.state.press_ratio > 1.8 and reader.state.max_travel < 2.0
+    # a finger landing: its ramp (the first press_settle_s) is left out of the rise
+    landing = list(np.linspace(0.005, 0.05, 16)) + [0.05] * 40
+    assert _read([[(63.0, 45.0)]] * 56, amps=landing).state.max_press_ratio < 1.1
+
+
+def test_a_finger_joining_the_touch_restarts_its_coherent_motion() -> None:
+    """The centroid jumps half-way toward a second fingertip that lands beside the first;
+    none of that counts as motion, and the pair's stroke is measured from the join."""
+    one = [[(100.0, 30.0)]] * 30
+    pair = [[(100.0 - 0.4 * k, 30.0), (100.0 - 0.4 * k, 48.0)] for k in range(60)]  # 24 mm up
+    ramp = list(np.linspace(0.005, 0.05, 10)) + [0.05] * 50
+    def read(settings: TouchSettings | None = None) -> TouchReader:
+        reader = TouchReader(ROWS, COLS, RP, CP, RATE, settings)
+        for k, tips in enumerate(one + pair):
+            if k < 30:
+                frame = frame_of(tips)
+            else:  # the second fingertip presses in over 50 ms
+                frame = frame_of(tips[:1]) + frame_of(tips[1:], amp=ramp[k - 30])
+            reader.step(frame, active_of(frame), True)
+        return reader
+
+    st, before = read().state, read(TouchSettings(rebase_fingers=0)).state
+    assert st.sustained_fingertips == 2
+    assert abs(st.dx) < 1.5 and abs(before.dx) > 3.0  # the jump toward the finger: no motion
+    assert -26.0 < st.dy < -15.0
+    assert abs(st.turning) < 0.2 < abs(before.turning)  # radians: the stroke turns no more

@@ -73,6 +73,28 @@ def bench_sim(
     show_bench(result, json_out)
 
 
+@bench_app.command("live")
+@user_errors
+def bench_live(
+    model: Path = MODEL,
+    streams: int = typer.Option(None, help="Independent mixed streams to time (default 2)."),
+    seconds: float = typer.Option(None, help="Length of each stream (default 60)."),
+    seed: int = typer.Option(None, help="Seed of the first stream (default 23000)."),
+    json_out: bool = JSON_OUT,
+) -> None:
+    """The live path on one core: conditioning, the network, tracking and reading, the
+    arbiter, fed as a live skin delivers frames; x real time per reader."""
+    from wovenskin.bench.live import run_live_benchmark
+    from wovenskin.recognition.pipeline import load_recognizer
+
+    recognizer = load_recognizer(model, threads=1)
+    with err_console.status("bench live: timing the live path on one core..."):
+        result = run_live_benchmark(
+            recognizer, **given(streams=streams, seconds=seconds, seed=seed)
+        )
+    show_bench(result, json_out)
+
+
 @bench_app.command("detection")
 @user_errors
 def bench_detection(

@@ -140,13 +140,17 @@ def pipeline_settings_for_model(
     """The pipeline settings every command and the dashboard run a model with: the model on
     every ``every``-th window (``None``: the :class:`PipelineSettings` default), read by
     :func:`model_reader` under the execution rules of :func:`arbiter_settings_for_model`
-    (explicit overrides, else the model's recommendation, else the defaults)."""
+    (explicit overrides, else the model's recommendation, else the defaults).  The touch
+    reader may recommend its own ``every`` (``meta.json``'s ``reader.every``): it averages
+    the windows over the whole touch, so every second window tells it as much."""
     kind = model_reader(recognizer, reader)
     arbiter = arbiter_settings_for_model(recognizer, kind, **arbiter_overrides)
     meta = getattr(recognizer, "meta", None)
     reader_settings = (
         ReaderSettings.from_dict(getattr(meta, "reader", None) or {}) if kind == TOUCH else None
     )
+    if every is None and kind == TOUCH:  # the touch reader's recommendation, if any
+        every = (getattr(meta, "reader", None) or {}).get("every")
     extra = {} if every is None else {"every": every}
     return PipelineSettings(arbiter=arbiter, reader=kind, reader_settings=reader_settings, **extra)
 

@@ -75,8 +75,8 @@ class ReaderSettings:
     press_span_s: float = 0.1
     press_after_s: float = 0.15
     press_max_travel_mm: float = 4.0
-    press_evidence: float = 2.0  # log units a press adds to push
-    press_net_peak: float = 0.5  # the network's least peak for a push (it sees presses poorly)
+    press_evidence: float = 4.0  # log units a press adds to push
+    press_net_peak: float = 0.1  # the network's least peak for a push (it sees presses poorly)
     two_finger_sd_mm: float = 8.3
     finger_weight: float = 0.8  # evidence per mm of blob spread
     direction_mm: float = 5.0  # travel per unit of direction evidence
@@ -190,6 +190,7 @@ class TouchRecognizer:
         return (
             st.press_ratio >= s.press_ratio
             and st.max_travel <= s.press_max_travel_mm
+            and st.sustained_fingertips <= 1  # fingers landing one by one raise it too
             and st.age_s >= s.press_after_s
         )
 
