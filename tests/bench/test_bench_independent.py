@@ -209,6 +209,21 @@ def test_bench_gestures_refuses_bad_options():
     result = CliRunner().invoke(app, ["bench", "gestures", "--flicks", "-1"])
     assert result.exit_code == 2
     assert "must be >= 0" in result.output
+    result = CliRunner().invoke(app, ["bench", "gestures", "--gain-scale", "0", "--flicks", "0"])
+    assert result.exit_code == 2 and "gain_scale" in result.output
+
+
+def test_bench_gestures_on_a_weak_skin_scores_weaker_streams():
+    """``--gain-scale`` renders the mixed streams' skins that much weaker or stronger."""
+    from wovenskin.bench.gestures import run_gestures_benchmark
+    from wovenskin.recognition.pipeline import load_recognizer
+
+    recognizer = load_recognizer(None, threads=1)
+    weak = run_gestures_benchmark(
+        recognizer, streams=1, seconds=20.0, flicks=0, held=0, gain_scale=0.12
+    )
+    assert weak.gain_scale == 0.12 and weak.to_dict()["gain_scale"] == 0.12
+    assert weak.recognition["events"] >= 1
 
 
 def test_bench_gestures_keeps_streams_only_in_a_new_folder(tmp_path):

@@ -110,6 +110,7 @@ SETTINGS: dict[tuple[str, str], tuple[type | str, str, float]] = {
     ("bench gestures", "flicks"): (_GESTURES, "DEFAULT_FLICKS", 1),
     ("bench gestures", "held"): (_GESTURES, "DEFAULT_HELD", 1),
     ("bench gestures", "hold"): (_GESTURES, "DEFAULT_HOLD_S", 1),
+    ("bench gestures", "gain_scale"): (_GESTURES, "DEFAULT_GAIN_SCALE", 1),
     ("bench recognition", "streams_per_condition"): (_RECOGNITION, _STREAMS, 1),
     ("bench recognition", "seconds"): ("wovenskin.bench.conditions", "DEFAULT_SECONDS", 1),
     ("bench recognition", "seed"): (_RECOGNITION, "DEFAULT_BASE_SEED", 1),

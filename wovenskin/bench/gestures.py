@@ -50,6 +50,7 @@ DEFAULT_BASE_SEED = 22000  # streams seed, seed+1, ...; flicks seed+1000+k; held
 DEFAULT_FLICKS = 40  # flicks through the simulated arm
 DEFAULT_HELD = 14  # held swipes through the simulated arm
 DEFAULT_HOLD_S = 2.5  # seconds a held swipe's finger stays still after the motion
+DEFAULT_GAIN_SCALE = 1.0  # the mixed streams' skins at their drawn response
 
 
 @dataclass
@@ -64,6 +65,7 @@ class GesturesBenchResult(BenchResult):
     motion: dict[str, dict[str, Any]] = field(default_factory=dict)  # per kind
     motion_runs: list[dict[str, Any]] = field(default_factory=list)
     hold_s: float = DEFAULT_HOLD_S
+    gain_scale: float = DEFAULT_GAIN_SCALE
     wall_s: float = 0.0
     warnings: list[str] = field(default_factory=list)
 
@@ -167,14 +169,16 @@ def run_recognition(
     progress: Progress | None = None,
     save_dir: Path | None = None,
     on_warning: Progress | None = None,
+    gain_scale: float = DEFAULT_GAIN_SCALE,
 ) -> tuple[EventScores, list[dict[str, Any]]]:
-    """Mixed independent streams through the live pipeline, scored event by event."""
+    """Mixed independent streams through the live pipeline, scored event by event; each
+    stream's skin responds ``gain_scale`` times as strongly as drawn."""
     rows, details = [], []
     for k in range(streams):
         stream_seed = seed + k
         if progress is not None:
             progress(f"mixed stream {k + 1} of {streams} (seed {stream_seed})")
-        stream = mixed_stream(seconds, stream_seed)
+        stream = mixed_stream(seconds, stream_seed, gain_scale=gain_scale)
         if save_dir is not None:
             write_labelled_stream(save_dir / f"mixed-{stream_seed}.npz", stream, overwrite=True)
         result = run_pipeline(stream, recognizer, settings, on_warning=on_warning)
@@ -230,9 +234,11 @@ def run_gestures_benchmark(
     hold_s: float = DEFAULT_HOLD_S,
     progress: Progress | None = None,
     save_dir: str | Path | None = None,
+    gain_scale: float = DEFAULT_GAIN_SCALE,
 ) -> GesturesBenchResult:
     """Recognition on ``streams`` mixed streams and motion of ``flicks`` flicks and ``held``
-    held swipes (``hold_s`` still after the motion); ``save_dir`` keeps every stream.
+    held swipes (``hold_s`` still after the motion); ``save_dir`` keeps every stream;
+    ``gain_scale`` scales the mixed streams' skin response (a weak or a strong skin).
     ``settings`` default to the model's own (``pipeline_settings_for_model``)."""
     if settings is None:
         settings = pipeline_settings_for_model(recognizer)
@@ -246,6 +252,7 @@ def run_gestures_benchmark(
     model = str(getattr(recognizer, "checkpoint_dir", "given recogniser"))
     result = GesturesBenchResult(model=model, streams=streams, seconds=seconds, seed=seed)
     result.hold_s = hold_s
+    result.gain_scale = gain_scale
     folder = Path(save_dir) if save_dir is not None else None
     if folder is not None:  # never overwrite unasked: a new or empty folder
         if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
@@ -254,7 +261,7 @@ def run_gestures_benchmark(
     if streams:
         total, details = run_recognition(
             recognizer, settings, streams, seconds, seed, progress, folder,
-            on_warning=result.warnings.append,
+            on_warning=result.warnings.append, gain_scale=gain_scale,
         )  # fmt: skip
         result.recognition = total.to_dict()
         result.per_stream = details

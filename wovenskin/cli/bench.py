@@ -211,6 +211,10 @@ def bench_gestures(
     save_streams: Path = typer.Option(
         None, help="Folder to keep every generated stream in (labelled-stream .npz)."
     ),
+    gain_scale: float = typer.Option(
+        None, help="The mixed streams' skins respond this many times as strongly as drawn "
+        "(0.12: a weak skin, 3: a strong one; default 1)."
+    ),
     min_probability: float = MIN_PROBABILITY,
     reader: str | None = READER,
     threads: int = THREADS,
@@ -232,7 +236,8 @@ def bench_gestures(
         result = run_gestures_benchmark(
             recognizer, settings, progress=lambda what: status.update(f"bench gestures: {what}"),
             save_dir=save_streams, **given(  # unset: bench/gestures.py's defaults
-                streams=streams, seconds=seconds, seed=seed, flicks=flicks, held=held, hold_s=hold
+                streams=streams, seconds=seconds, seed=seed, flicks=flicks, held=held, hold_s=hold,
+                gain_scale=gain_scale,
             ),
         )  # fmt: skip
     for message in result.warnings:
