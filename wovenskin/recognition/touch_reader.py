@@ -190,7 +190,6 @@ class TouchRecognizer:
         return (
             st.press_ratio >= s.press_ratio
             and st.max_travel <= s.press_max_travel_mm
-            and st.sustained_fingertips <= 1  # fingers landing one by one raise it too
             and st.age_s >= s.press_after_s
         )
 
