@@ -95,7 +95,7 @@ def test_every_command_runs_the_models_recommendation(command, model_dir, captur
     assert settings == expected(model_dir)
     assert settings.arbiter.dwell_s == RECOMMENDED["dwell_s"]  # not the 100 ms default
     assert settings.arbiter.min_probability == RECOMMENDED["min_probability"]
-    assert settings.every == 1  # PipelineSettings' default
+    assert settings.every == 4  # the shipped touch reader's own recommendation (reader.every)
 
 
 @pytest.mark.parametrize("command", ["replay", "eval-stream"])
