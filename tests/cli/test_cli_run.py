@@ -187,3 +187,24 @@ def test_headless_run_without_a_skin_on_a_task(model_dir) -> None:
         "--model", model_dir,
     )  # fmt: skip
     assert result.exit_code == 0, result.output
+
+
+def test_ctrl_c_in_run_exits_130_after_its_summary(model_dir, stream_file, monkeypatch) -> None:
+    from wovenskin.control.session import ControlSession
+
+    def interrupted(self, seconds=None, should_continue=None):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ControlSession, "run", interrupted)
+    result = invoke(
+        "run", "--skin", f"replay:{stream_file}", "--model", model_dir, "--headless",
+    )  # fmt: skip
+    assert result.exit_code == 130, result.output
+    assert "interrupted (Ctrl-C)" in result.stderr
+
+
+@pytest.mark.parametrize("port", ["99999", "-1", "0"])
+def test_a_port_out_of_range_is_one_line(port) -> None:
+    result = invoke("run", "--port", port)
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    assert "--port" in result.output

@@ -73,3 +73,10 @@ def test_the_event_score_table_fits_80_columns():
     for figure in ("1200", "1100", "0.80", "410", "250"):
         assert figure in row.split(), row  # every figure whole, on the stream's first line
     assert name in "".join(line.split()[0] for line in lines if line and not line[0].isspace())
+
+
+def test_the_pytorch_hint_is_the_command_for_this_install() -> None:
+    """From a clone the hint is the README's own command, not the package index's."""
+    from wovenskin.wording import train_extra_hint
+
+    assert train_extra_hint().startswith(".venv/bin/pip install -e '.[train]'")

@@ -310,7 +310,7 @@ def test_not_an_npz(tmp_path):
 def test_a_directory_is_not_a_file(tmp_path):
     with pytest.raises(FormatError) as excinfo:
         read_labelled_stream(tmp_path)
-    assert_one_line_error(excinfo, tmp_path, "cannot read")
+    assert_one_line_error(excinfo, tmp_path, "is a folder, not a file")
 
 
 def test_corrupt_zip(tmp_path):

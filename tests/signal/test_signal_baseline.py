@@ -173,6 +173,21 @@ def test_a_weak_endless_contact_is_rebaselined_as_stale():
     _assert_rebaselined_after(config, 10.05, config.stale_contact_blocks)
 
 
+def test_a_weak_contact_that_wanders_like_a_held_finger_is_not_stale():
+    """A light finger held on a weak skin reads as little as a baseline error, but its force
+    wobbles: its block levels wander by far more than their noise, and the stale rule
+    spares it (only ``max_contact_s`` re-baselines it)."""
+    config = ConditioningConfig(stale_contact_s=1.0, max_contact_s=3.0, common_drift=False)
+    tracker = BaselineTracker(_calibration(10.0), config)
+    level = np.full(SHAPE, 10.0)
+    for k in range(config.max_contact_blocks - 1):  # past stale_contact_s, short of the max
+        level[4, 4] = 10.0 * (1.005 + 0.004 * (-1) ** k)  # +0.1 % and +0.9 % in turn
+        _run_block(tracker, level, _one(4, 4))
+    assert tracker.baseline[4, 4] == 10.0
+    _run_block(tracker, level, _one(4, 4))
+    assert tracker.baseline[4, 4] == level[4, 4]  # max_contact_s: the last guard
+
+
 def test_a_firm_long_press_is_kept_until_max_contact():
     config = ConditioningConfig(stale_contact_s=0.5, max_contact_s=2.0, common_drift=False)
     # +20 %: far above stale_contact_rel

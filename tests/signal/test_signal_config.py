@@ -41,7 +41,7 @@ def test_alphas_are_fractions_that_grow_with_the_block():
 
 def test_contact_guards_in_blocks():
     config = ConditioningConfig()
-    assert config.stale_contact_blocks == 50 and config.max_contact_blocks == 300
+    assert config.stale_contact_blocks == 50 and config.max_contact_blocks == 600
     assert ConditioningConfig(max_contact_s=0).max_contact_blocks == 0
     assert ConditioningConfig(max_contact_s=60).max_contact_blocks == 600
 

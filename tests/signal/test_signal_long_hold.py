@@ -98,3 +98,26 @@ def test_the_fringe_field_around_a_resting_hand_never_lowers_a_baseline():
     for _ in range(config.hold_blocks + 2):  # lifted: everything at rest again
         tracker.accumulate(np.full((block, *shape), 10.0), np.zeros((block, *shape), bool))
     assert (tracker.baseline[neighbours] == 10.0).all()
+
+
+@pytest.mark.parametrize(("gain", "seed"), [(0.3, 2), (0.3, 3), (0.1, 1)])
+def test_a_thirty_second_hold_on_a_weak_skin_keeps_its_command_until_the_lift(gain, seed):
+    """A swipe held still for 30 s on a weak skin (an independent person and skin, the
+    response scaled by ``gain``) reads under 1 % above baseline: the stale rule used to end
+    it after 5 s.  The finger's wobble tells it from a baseline error, and the command
+    lasts until the lift (``max_contact_s``, 60 s, stays the guard)."""
+    from wovenskin.independent.streams import gesture_stream
+    from wovenskin.recognition.pipeline import (
+        load_recognizer,
+        pipeline_settings_for_model,
+        run_pipeline,
+    )
+
+    recognizer = load_recognizer(None, threads=1)
+    stream = gesture_stream("swipe_left:held=30", seed, gain_scale=gain)
+    commands = run_pipeline(stream, recognizer, pipeline_settings_for_model(recognizer)).commands
+    lift = stream.metadata["events"][0]["phases"]["lift_start_s"]
+    started = [c for c in commands if c.gesture]
+    assert started and started[-1].gesture == "swipe_left", commands
+    ended = [c for c in commands if c.gesture is None and c.t > started[-1].t]
+    assert ended and ended[0].t >= lift - 0.3, (lift, commands)

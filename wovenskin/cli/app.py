@@ -23,13 +23,23 @@ from wovenskin.robots.base import RobotError
 if TYPE_CHECKING:
     from rich.progress import Progress, TaskID
 
+HELP_STYLE = None
+"""Every command's help is click's plain text (``rich_markup_mode=None``), which rewraps
+each paragraph at words to the terminal's width; Rich's option table cut long values such
+as ``serial:PORT[?format=...]`` with an ellipsis."""
+
 app = typer.Typer(
     help="Gesture control of a robot arm with a woven capacitive tactile skin.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=HELP_STYLE,
 )
-bench_app = typer.Typer(help="Benchmarks: print measured figures and ratios.", no_args_is_help=True)
+bench_app = typer.Typer(
+    help="Benchmarks: print measured figures and ratios.",
+    no_args_is_help=True,
+    rich_markup_mode=HELP_STYLE,
+)
 app.add_typer(bench_app, name="bench")
 
 # Not on a terminal (a pipe, a file, a script) lines are never wrapped at 80 columns: a
@@ -129,7 +139,9 @@ def user_errors(fn):
     return wrapper
 
 
-pose_app = typer.Typer(help="Named robot poses: the task's initial pose and home.")
+pose_app = typer.Typer(
+    help="Named robot poses: the task's initial pose and home.", rich_markup_mode=HELP_STYLE
+)
 app.add_typer(pose_app, name="pose")
 
 
@@ -249,7 +261,6 @@ def pipeline_settings(
     )
 
 
-TORCH_HINT = "pip install 'wovenskin[train]'"
 
 
 def require_torch(command: str) -> None:
@@ -257,4 +268,8 @@ def require_torch(command: str) -> None:
     import importlib.util
 
     if importlib.util.find_spec("torch") is None:
-        raise ConfigError(f"{command} needs PyTorch, which is not installed: {TORCH_HINT}")
+        from wovenskin.wording import train_extra_hint
+
+        raise ConfigError(
+            f"{command} needs PyTorch, which is not installed: {train_extra_hint()}"
+        )

@@ -57,7 +57,7 @@ def run(
         "simulated arm (in real time on a real one).",
     ),
     host: str = typer.Option("127.0.0.1", help="Dashboard address; not loopback needs a token."),
-    port: int = typer.Option(8000, help="Dashboard port."),
+    port: int = typer.Option(8000, min=1, max=65535, help="Dashboard port (1-65535)."),
     token: str = typer.Option(None, help="Dashboard token (made up when --host is not local)."),
     open_browser: bool = typer.Option(
         True, "--open/--no-open", help="Open the dashboard in the default web browser."
@@ -127,12 +127,14 @@ def run(
         if publisher is not None:
             publisher.close()
         raise
+    from wovenskin.control.session_state import INTERRUPTED
+
     try:
         if headless:
             try:
                 result = session.run(seconds)
             except KeyboardInterrupt:
-                session.request_quit("interrupted (Ctrl-C)")
+                session.request_quit(INTERRUPTED)
                 result = session.result()
         else:
             from wovenskin.teleop.keyboard import TerminalKeyboard
@@ -154,6 +156,8 @@ def run(
         out.print(f"trace: {writer.lines} lines in {writer.path}", highlight=False)
     if record is not None:
         out.print(f"recording: {record}", highlight=False)
+    if result.ended == INTERRUPTED:
+        raise typer.Exit(130)
 
 
 INPUTS = ("skin", "keyboard", "pendant")

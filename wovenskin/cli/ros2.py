@@ -6,12 +6,13 @@ from pathlib import Path
 
 import typer
 
-from wovenskin.cli.app import app, err_console, user_errors
+from wovenskin.cli.app import HELP_STYLE, app, err_console, user_errors
 from wovenskin.errors import ConfigError
 
 ros2_app = typer.Typer(
-    help="ROS 2 without a ROS install (wovenskin\\[ros2]): a stand-in MoveIt Servo.",
+    help="ROS 2 without a ROS install (wovenskin[ros2]): a stand-in MoveIt Servo.",
     no_args_is_help=True,
+    rich_markup_mode=HELP_STYLE,
 )
 app.add_typer(ros2_app, name="ros2")
 

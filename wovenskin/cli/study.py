@@ -10,12 +10,13 @@ from pathlib import Path
 
 import typer
 
-from wovenskin.cli.app import MODEL, SKIN_HELP, console, robot_errors, user_errors, warn
+from wovenskin.cli.app import HELP_STYLE, MODEL, SKIN_HELP, console, robot_errors, user_errors, warn
 from wovenskin.wording import quantity
 
 study_app = typer.Typer(
     help="User studies: definitions, counterbalanced plans, trial logs, reports (docs/study.md).",
     no_args_is_help=True,
+    rich_markup_mode=HELP_STYLE,
 )
 
 DIR = typer.Argument(..., help="The study folder (holds study.toml).")
@@ -148,6 +149,7 @@ def study_simulate(
     from rich.progress import Progress
 
     from wovenskin.cli.app import err_console
+    from wovenskin.errors import ConfigError
     from wovenskin.study.definition import TASKS, TIME_LIMIT_S
     from wovenskin.study.simulate import (
         HANDS,
@@ -171,6 +173,14 @@ def study_simulate(
     objects = OBJECTS if objects is None else objects
     jobs = JOBS if jobs is None else jobs
     hands = check_hands(HANDS if hands is None else hands)
+    for name in task:  # refused before anything is estimated or written
+        if name not in TASKS:
+            raise ConfigError(f"--task {name!r}: a study task is one of {', '.join(TASKS)}")
+    for name in interface:
+        if name not in INTERFACES:
+            raise ConfigError(
+                f"--interface {name!r}: simulated operators use {', '.join(INTERFACES)}"
+            )
     total = participants * trials * len(task) * len(interface)
     guess = estimate_wall_s(participants, trials, len(task), tuple(interface), jobs, time_limit)
     console.print(

@@ -64,6 +64,11 @@ class SessionState:
     unsure_t: float | None = None  # session time of the newest unsure reading
 
 
+INTERRUPTED = "interrupted (Ctrl-C)"
+"""How a session that Ctrl-C ended says it ended (:attr:`SessionResult.ended`); the command
+line then exits 130, as a shell expects of an interrupted program."""
+
+
 @dataclass
 class SessionResult:
     """Figures of a finished session."""

@@ -108,6 +108,8 @@ def parse_command_log(text: str | Iterable[str]) -> list[Command]:
 def read_command_log(path: str | os.PathLike) -> list[Command]:
     """Read a command-log file; ``FileNotFoundError`` / ``ValueError`` in one line if unreadable."""
     path = Path(path)
+    if path.is_dir():
+        raise FileNotFoundError(f"{path}: is a folder, not a command log")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")
     try:

@@ -18,6 +18,8 @@ def load_stream(stream: LabelledStream | str | os.PathLike) -> LabelledStream:
     :class:`~wovenskin.skin.layout.UnsupportedSkinError` line naming the file."""
     if isinstance(stream, LabelledStream):
         labelled, where = stream, "the stream"
+    elif os.path.isdir(stream):
+        raise FileNotFoundError(f"{stream}: is a folder, not a stream file (.npz or .wsrec)")
     elif not os.path.isfile(stream):
         raise FileNotFoundError(f"{stream}: no such file")
     else:

@@ -54,6 +54,8 @@ def identify(path: str | os.PathLike) -> str:
             is_zip = zipfile.is_zipfile(f)
     except FileNotFoundError:
         fail(where, "no such file")
+    except IsADirectoryError:
+        fail(where, "is a folder, not a file")
     except OSError as exc:
         fail(where, f"cannot read ({exc.strerror or exc})")
     if not head:

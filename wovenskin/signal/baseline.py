@@ -73,6 +73,14 @@ from wovenskin.signal.filters import hold_last_good
 
 _NEVER = np.int64(-(2**40))
 
+HOLD_WANDER_SIGMA = 10.0
+"""A weak stale-contact candidate that is active and whose block levels over the last half
+of ``stale_contact_s`` wander by more than this many sds of a block median's noise is a
+finger holding still (force wobble, tremor), not a baseline error: the stale rule spares
+it, and ``max_contact_s`` stays the guard.  A baseline step is flat but for noise and
+mains (about 5 such sds on the test skins); a finger held on 0.1x to 1x skins wandered by
+13-35."""
+
 
 def _median(values: np.ndarray) -> float:
     """Median of a 1-D array (``np.median`` without its overhead)."""
@@ -201,6 +209,13 @@ class BaselineTracker:
             np.int64(config.stale_contact_blocks) if config.stale_contact_s > 0 else np.int64(2**40)
         )
         self._stale_rel = config.stale_contact_rel
+        # A finger holding still wanders; a baseline error does not (HOLD_WANDER_SIGMA).
+        self._wander_blocks = int(min(max(2, self._stale_blocks // 2), 200))
+        self._recent_deviation = np.zeros((self._wander_blocks, *self.shape))
+        self._recent_peak = np.zeros(self._wander_blocks)  # the strongest active channel's
+        self._median_noise = np.where(
+            self.live, noise * 1.2533 / np.sqrt(self._block_frames), np.inf
+        )  # sd of a block's median under white noise
         # Common-mode drift.
         self._common_min_channels = (
             max(1, int(np.ceil(config.common_drift_min_fraction * self.live.sum())))
@@ -324,7 +339,13 @@ class BaselineTracker:
 
         self._last_free_block[~frozen] = index
         frozen_for = index - self._last_free_block
+        self._recent_deviation[index % self._wander_blocks] = deviation
+        self._recent_peak[index % self._wander_blocks] = (
+            float(deviation[active].max()) if active.any() else np.inf
+        )
         stuck = (frozen_for >= self._stale_blocks) & (deviation < self._stale_rel)
+        if stuck.any():
+            stuck &= ~self._holding(stuck & active)
         if self._max_contact_blocks > 0:
             stuck |= frozen_for >= self._max_contact_blocks
         if stuck.any():
@@ -335,6 +356,21 @@ class BaselineTracker:
         self._block_active.fill(False)
         self._in_block = 0
         self._block_index += 1
+
+    def _holding(self, candidates: np.ndarray) -> np.ndarray:
+        """Of the active stale ``candidates``, those a finger holds: over the last half of
+        ``stale_contact_s`` each was the contact's core in every block (at least half the
+        strongest active channel's level: a fringe of crosstalk, or what is left when the
+        finger beside it lifted, is not), stayed weak (a firm press lifting is no weak
+        hold) and wandered by more than :data:`HOLD_WANDER_SIGMA` block-noise sds."""
+        held = np.zeros(self.shape, dtype=bool)
+        if candidates.any():
+            recent = self._recent_deviation[:, candidates]
+            core = (recent >= 0.5 * self._recent_peak[:, None]).all(axis=0)
+            weak = recent.max(axis=0) < 3 * self._stale_rel
+            wanders = recent.std(axis=0) > HOLD_WANDER_SIGMA * self._median_noise[candidates]
+            held[candidates] = core & weak & wanders
+        return held
 
     def _fast_recovery(
         self, level: np.ndarray, upper_deviation: np.ndarray, hand_near: bool

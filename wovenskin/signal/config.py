@@ -202,7 +202,7 @@ class ConditioningConfig:
     disturbed_max_s: float = 10.0
     stale_contact_s: float = 5.0
     stale_contact_rel: float = 0.01
-    max_contact_s: float = 30.0
+    max_contact_s: float = 60.0
     noise_floor_rel: float = 2e-5
     noise_floor_fraction: float = 0.5
     calib_disturb_ratio: float = 5.0

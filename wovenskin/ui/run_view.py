@@ -28,7 +28,7 @@ from rich.table import Table
 from rich.text import Text
 
 from wovenskin.control.session import ControlSession
-from wovenskin.control.session_state import SessionResult
+from wovenskin.control.session_state import INTERRUPTED, SessionResult
 from wovenskin.teleop.keyboard import TerminalKeyboard, key_map
 from wovenskin.ui.terminal import heatmap, live_screen
 
@@ -120,7 +120,7 @@ def run_with_view(
                 result = session.run(seconds, should_continue=keep_going)
                 live.update(render_run(session, title, keyboard), refresh=True)
         except KeyboardInterrupt:
-            session.request_quit("interrupted (Ctrl-C)")
+            session.request_quit(INTERRUPTED)
             result = session.result()
     return result
 

@@ -26,8 +26,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from wovenskin.wording import train_extra_hint
+
 WORKER_COMMAND: tuple[str, ...] = (sys.executable, "-m", "wovenskin.ui.dashboard.adapt_worker")
-TORCH_HINT = "pip install 'wovenskin[train]'"
 FINISHED = ("done", "refused", "failed", "cancelled")
 
 
@@ -35,7 +36,7 @@ def torch_missing() -> str:
     """One line saying that adapting needs PyTorch, or ``""`` when it is installed."""
     if importlib.util.find_spec("torch") is not None:
         return ""
-    return f"adapting needs PyTorch, which is not installed here: {TORCH_HINT}"
+    return f"adapting needs PyTorch, which is not installed here: {train_extra_hint()}"
 
 
 @dataclass
