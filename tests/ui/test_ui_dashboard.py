@@ -583,3 +583,20 @@ def test_hostile_socket_messages_get_an_error_reply_and_keep_the_connection(runn
         assert any("binary" in e for e in errors) and any("nested" in e for e in errors)
         assert pongs == [None, 7]  # a non-finite time is not echoed back
     assert runner.running and runner.latest()["recognition"]["command"] is None
+
+
+def test_the_motion_line_reads_the_arms_measured_motion() -> None:
+    """A pose move (going home) commands no twist, yet the arm moves: the panel's speed is
+    the arm's measured TCP twist, the commanded one only before any arm state."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from wovenskin.ui.dashboard.snapshot import motion_part
+
+    robot = SimpleNamespace(tcp_twist=np.array([0.12, 0.16, 0.0, 0.0, 0.0, 0.1]))
+    state = SimpleNamespace(robot=robot, twist=np.zeros(6), gesture=None)
+    moving = motion_part(SimpleNamespace(state=state, now=1.0))
+    assert moving["linear_mm_s"] == 200.0 and moving["angular_deg_s"] == 5.7
+    before = SimpleNamespace(robot=None, twist=np.array([0.05, 0, 0, 0, 0, 0]), gesture=None)
+    assert motion_part(SimpleNamespace(state=before, now=1.0))["linear_mm_s"] == 50.0

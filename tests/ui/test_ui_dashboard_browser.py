@@ -199,6 +199,19 @@ def test_the_page_loads_with_no_console_errors(page) -> None:
     assert page.problems == []
 
 
+def test_with_the_server_gone_no_figure_looks_live(page) -> None:
+    """The link drops: the page greys its figures out, clears the rates and says the
+    safety state is unknown, until the socket is back."""
+    assert _wait_for(page, "window.wovenskin.connected", 10.0)
+    page.evaluate("window.wovenskin.socket.close()")
+    assert _wait_for(page, "document.body.classList.contains('offline')", 5.0)
+    assert page.locator("#rates").text_content() == ""
+    assert page.locator("#safety").text_content() == "unknown"
+    assert page.locator("#link").text_content() == "disconnected: retrying"
+    assert _wait_for(page, "!document.body.classList.contains('offline')", 10.0)  # back
+    assert _wait_for(page, "document.getElementById('safety').textContent === 'running'", 5.0)
+
+
 def test_a_drawn_upward_swipe_drives_the_arm_along_its_tool_z(page) -> None:
     before = _state(page)["robot"]
     _swipe_up(page)

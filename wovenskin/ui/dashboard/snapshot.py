@@ -135,9 +135,16 @@ def recognition_part(session: Any) -> dict:
 
 
 def motion_part(session: Any) -> dict:
-    """How fast the arm is commanded to move now (mm/s, deg/s) and, while a gesture's
-    command runs, its speed profile's share of full speed (control/profile.py)."""
-    twist = np.asarray(getattr(session.state, "twist", np.zeros(6)), dtype=float)
+    """How fast the arm moves now (mm/s, deg/s), as the arm measures it (its TCP twist:
+    a pose move such as going home is no twist command, yet the arm moves), and, while a
+    gesture's command runs, its speed profile's share of full speed (control/profile.py).
+    With no arm state yet, the commanded twist."""
+    robot = getattr(session.state, "robot", None)
+    measured = getattr(robot, "tcp_twist", None)
+    twist = np.asarray(
+        measured if measured is not None else getattr(session.state, "twist", np.zeros(6)),
+        dtype=float,
+    )
     motion = getattr(session, "gesture_motion", None)
     fraction = None
     if motion is not None and session.state.gesture is not None:

@@ -22,9 +22,18 @@ function connect() {
   const url = `${scheme}://${location.host}/ws${token ? `?token=${encodeURIComponent(token)}` : ""}`;
   const ws = new WebSocket(url);
   page.socket = ws;
-  ws.onopen = () => { page.connected = true; setPill($("link"), "live", "ok"); };
+  ws.onopen = () => {
+    page.connected = true;
+    document.body.classList.remove("offline");
+    setPill($("link"), "live", "ok");
+  };
   ws.onclose = () => {
     page.connected = false;
+    // Nothing on the page is live any more: the figures grey out and the rates and the
+    // safety state say they are unknown, until the server is back.
+    document.body.classList.add("offline");
+    $("rates").textContent = "";
+    setPill($("safety"), "unknown", "bad");
     setPill($("link"), "disconnected: retrying", "bad");
     setTimeout(connect, 1000);
   };
@@ -119,6 +128,8 @@ skinTexture.width = 10; skinTexture.height = 10; // resized (with a new GPU text
 const skinTextureCtx = skinTexture.getContext("2d");
 let layout = { rows: 10, cols: 10, row_pitch_mm: 14, col_pitch_mm: 10 };
 
+const MIN_SCALE = 0.01; // the heatmap's least full scale: 1 % relative change
+let shownScale = MIN_SCALE;
 function colour(v) { // 0..1 -> a perceptual dark-to-bright ramp (inferno-like)
   const x = Math.max(0, Math.min(1, v));
   const stops = [[0, 0, 4], [40, 11, 84], [101, 21, 110], [159, 42, 99], [212, 72, 66],
@@ -149,9 +160,14 @@ function updateSkin(skin) {
     skinTexture.width = cols; skinTexture.height = rows;
     arm.resizeTexture();
   }
+  // The brightest colour follows the touch: the frame's peak (decaying over about a second),
+  // never above the full scale nor below MIN_SCALE, so a light touch on a weak skin is as
+  // bright as a firm one on a strong skin, and noise alone stays dark.
+  const peak = Math.max(0, ...skin.signal);
+  shownScale = Math.min(skin.full_scale, Math.max(MIN_SCALE, peak, shownScale * 0.97));
   for (let r = 0; r < rows; r++) {
     for (let c = 0; c < cols; c++) {
-      const v = Math.sqrt(Math.max(0, skin.signal[r * cols + c]) / skin.full_scale); // gamma: light touches show
+      const v = Math.sqrt(Math.max(0, skin.signal[r * cols + c]) / shownScale); // gamma: light touches show
       skinCtx.fillStyle = colour(v);
       skinCtx.fillRect(c * cw, r * ch, cw + 0.5, ch + 0.5);
       skinTextureCtx.fillStyle = colour(v);
