@@ -45,6 +45,23 @@ def test_the_touch_reads_the_direction_the_window_got_wrong() -> None:
     assert readings[-1] == "swipe_up"  # 40 mm up outweighs the windows' swipe_down
 
 
+def test_the_evidence_the_bars_show_is_the_touch_so_far_not_the_latest_window() -> None:
+    """The windows say down, the finger went 40 mm up: the reader reads swipe_up, and its
+    evidence (what the dashboard's bars show) agrees with the reading, not the window."""
+    down, up = _probabilities(swipe_down=0.9, invalid=0.1), _probabilities(swipe_up=0.6)
+    reader = TouchRecognizer(CLASS_NAMES, ROWS, COLS, RP, CP, RATE)
+    assert reader.evidence() is None  # no touch
+    for k in range(80):
+        frame = frame_of([(110.0 - 0.5 * k, 45.0)], sd_mm=6.0)
+        reader.step(frame, active_of(frame), True, down if k < 45 else up)
+    evidence = reader.evidence()
+    assert reader.reading == "swipe_up"
+    assert CLASS_NAMES[int(np.argmax(evidence))] == "swipe_up"
+    assert evidence[CLASS_NAMES.index(INVALID)] == 0.0 and abs(float(evidence.sum()) - 1) < 1e-5
+    reader.step(np.zeros((ROWS, COLS)), np.zeros((ROWS, COLS), bool), False, up)  # lift-off
+    assert reader.evidence() is None
+
+
 def test_geometry_alone_starts_nothing() -> None:
     readings = _readings(lambda k: _probabilities(invalid=0.97))
     assert set(readings) == {INVALID}

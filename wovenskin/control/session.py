@@ -324,9 +324,10 @@ class ControlSession:
         if probabilities is None:
             return
         probabilities = np.asarray(probabilities, dtype=np.float32)
+        shown = np.asarray(getattr(self.pipeline, "evidence", probabilities), dtype=np.float32)
         contacts = getattr(getattr(self.live_skin, "state", None), "contacts", None)
         minimum = min_probability_of(self.pipeline)
-        update_predictions(self.state, probabilities, minimum, bool(contacts), t)
+        update_predictions(self.state, shown, minimum, bool(contacts), t)
         top, p = self.state.top
         self.record.note("predictions", t, {"top": top, "p": p, "probabilities": probabilities})
 

@@ -285,6 +285,17 @@ class LivePipeline:
         """``(K,)`` probabilities of the latest window, columns in :attr:`class_names` order."""
         return self.streaming.latest_probabilities
 
+    @property
+    def evidence(self) -> np.ndarray:
+        """``(K,)`` what the reader holds now, as probabilities: the touch reader's reading
+        of the touch so far (:meth:`TouchRecognizer.evidence`) while a touch lasts, else
+        the latest window's probabilities.  Views show this; recordings keep the windows."""
+        if self.touch is not None:
+            row = self.touch.evidence()
+            if row is not None:
+                return row
+        return self.streaming.latest_probabilities
+
     def tracks(self) -> list[Track]:
         """The live contact tracks after the latest frame fed (positions in mm from the
         centre of channel ``[0, 0]``); empty when the window reader runs, which tracks

@@ -160,6 +160,7 @@ class TouchRecognizer:
         self._recent: deque[np.ndarray] = deque()
         self._recent_sum = np.zeros(len(self.valid))
         self._peak = np.zeros(len(self.valid))
+        self._invalid_sum = 0.0
         self._held: int | None = None
         self.reading: str | None = None
         self.state: TouchState | None = None
@@ -244,7 +245,9 @@ class TouchRecognizer:
                 self.reset()
             return row
         self.state = st
-        p = np.asarray(probabilities, dtype=np.float64)[self.valid]
+        full = np.asarray(probabilities, dtype=np.float64)
+        p = full[self.valid]
+        self._invalid_sum += float(full[self.invalid])
         self._sum += p
         self._count += 1
         self._recent.append(p)
@@ -272,6 +275,27 @@ class TouchRecognizer:
             self._held = None
             self.reading = None
         return row
+
+    def evidence(self) -> np.ndarray | None:
+        """``(K,)`` what the reader holds of the touch so far, as probabilities (``None``
+        between touches): the valid classes' scores (the network's windows averaged over
+        the touch, plus the geometry) softmaxed, scaled by one less ``invalid``'s share,
+        which is 0 while a reading counts, else the touch's mean ``invalid`` probability.
+        This is what the dashboard's bars show, not the latest window alone."""
+        if not self._count or self.state is None:
+            return None
+        mean = self._sum / self._count
+        score = np.log(mean / max(float(mean.sum()), _FLOOR) + _FLOOR) + self._geometry(self.state)
+        soft = np.exp(score - score.max())
+        soft /= soft.sum()
+        invalid = 0.0 if self.reading is not None else self._invalid_mean()
+        row = np.zeros(len(self.class_names), dtype=np.float32)
+        row[self.valid] = (1.0 - invalid) * soft
+        row[self.invalid] = invalid
+        return row
+
+    def _invalid_mean(self) -> float:
+        return float(self._invalid_sum / self._count) if self._count else 1.0
 
     @property
     def tracks(self) -> list[Track]:
