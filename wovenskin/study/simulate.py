@@ -87,11 +87,13 @@ PARTICIPANTS = 6
 TRIALS_PER_CONDITION = 2
 """The default trials per task and interface: 72 trials for six operators (the paper ran
 10, 360 trials: about 3.5 hours two at a time on a 2-core machine)."""
-WALL_S_PER_TRIAL = {"skin": 86.0, "keyboard": 60.0, "pendant": 55.0}
-SIM_S_PER_WALL_S = {"skin": 1.23, "keyboard": 1.27, "pendant": 1.44}
-"""Wall seconds a trial took on average under a 300 s limit, and simulated
-seconds run per wall second, two trials at a time on a shared 2-core machine
-(docs/benchmarks.md, "The committed report"): the basis of :func:`estimate_wall_s`."""
+WALL_S_PER_TRIAL = {"skin": 39.0, "keyboard": 27.0, "pendant": 30.0}
+SIM_S_PER_WALL_S = {"skin": 1.9, "keyboard": 2.4, "pendant": 2.4}
+"""Wall seconds a trial took on average, and simulated seconds run per wall second, one
+trial at a time on the shared 2-core machine (two simulated studies of 48 trials each,
+2026-12-07, `--jobs 1`, a 120 s limit: skin 35.5 and 42.7 s, 2.1 and 1.7 x; keyboard 24.9
+and 28.2 s, 2.6 and 2.3 x; the pendant, not measured then, is taken as the keyboard, which
+its earlier figures matched): the basis of :func:`estimate_wall_s`."""
 
 
 @dataclass(frozen=True)
