@@ -72,7 +72,8 @@ Rules (docs/gestures.md, "Execution rules" and the resting paragraph before them
 
   A swipe lifted as soon as its motion ends (a flick) may give the model fewer
   confident windows than the dwell needs; its streak is what the touch showed.  The
-  figures behind these defaults are in ``docs/gestures.md`` ("Execution rules").
+  figures behind these defaults are in ``docs/benchmarks.md`` ("The window reader's
+  smoothing and flick rules").
 
 "Being performed" is :mod:`~wovenskin.recognition.performing`'s flag (its module doc has
 the rule and its defaults); its names are re-exported here.

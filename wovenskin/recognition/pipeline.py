@@ -140,9 +140,8 @@ def pipeline_settings_for_model(
     """The pipeline settings every command and the dashboard run a model with: the model on
     every ``every``-th window (``None``: the :class:`PipelineSettings` default), read by
     :func:`model_reader` under the execution rules of :func:`arbiter_settings_for_model`
-    (explicit overrides, else the model's recommendation, else the defaults).  The touch
-    reader may recommend its own ``every`` (``meta.json``'s ``reader.every``): it averages
-    the windows over the whole touch, so every second window tells it as much."""
+    (explicit overrides, else the model's recommendation, else the defaults), ``every``
+    included (the touch reader's ``reader.every`` in ``meta.json``)."""
     kind = model_reader(recognizer, reader)
     arbiter = arbiter_settings_for_model(recognizer, kind, **arbiter_overrides)
     meta = getattr(recognizer, "meta", None)
@@ -259,11 +258,8 @@ class LivePipeline:
     def for_live_skin(
         cls, live_skin: Any, recognizer: Recognizer, settings: PipelineSettings | None = None
     ) -> LivePipeline:
-        """A pipeline for a live skin (:class:`~wovenskin.signal.live_skin.LiveSkin`).
-
-        Create the ``LiveSkin`` with ``config=conditioning_for_model(recognizer)``: the
-        model refuses frames conditioned otherwise.
-        """
+        """A pipeline for a live skin (:class:`~wovenskin.signal.live_skin.LiveSkin`), made
+        with ``config=conditioning_for_model(recognizer)``: the model refuses others."""
         info = live_skin.info
         return cls(
             recognizer,
@@ -287,19 +283,14 @@ class LivePipeline:
 
     @property
     def evidence(self) -> np.ndarray:
-        """``(K,)`` what the reader holds now, as probabilities: the touch reader's reading
-        of the touch so far (:meth:`TouchRecognizer.evidence`) while a touch lasts, else
-        the latest window's probabilities.  Views show this; recordings keep the windows."""
-        if self.touch is not None:
-            row = self.touch.evidence()
-            if row is not None:
-                return row
-        return self.streaming.latest_probabilities
+        """``(K,)`` what views show: the touch reader's evidence for the touch so far while
+        one lasts (:meth:`TouchRecognizer.evidence`), else the latest window's."""
+        row = None if self.touch is None else self.touch.evidence()
+        return self.streaming.latest_probabilities if row is None else row
 
     def tracks(self) -> list[Track]:
-        """The live contact tracks after the latest frame fed (positions in mm from the
-        centre of channel ``[0, 0]``); empty when the window reader runs, which tracks
-        nothing."""
+        """The live contact tracks after the latest frame fed (mm from the centre of
+        channel ``[0, 0]``); empty with the window reader, which tracks nothing."""
         return [] if self.touch is None else self.touch.tracks
 
     def tracks_at(self, t: float) -> list[Track] | None:
