@@ -12,7 +12,7 @@ from annotated_types import Ge, Gt
 
 from wovenskin.errors import ConfigError
 from wovenskin.io import atomic_write_text
-from wovenskin.outputs import check_new_output
+from wovenskin.outputs import check_new_output, check_writable
 from wovenskin.settings import from_dict
 
 STUDY_FILE = "study.toml"
@@ -120,6 +120,8 @@ def parse_study(text: str, where: str = STUDY_FILE) -> StudyDefinition:
 def load_study(directory: str | Path) -> StudyDefinition:
     """Read ``DIR/study.toml``; a missing or bad file is one :class:`ConfigError` line."""
     path = study_file(directory)
+    if Path(directory).exists() and not Path(directory).is_dir():
+        raise ConfigError(f"{directory}: is a file, not a study folder")
     if not path.is_file():
         raise ConfigError(f"{path} not found: create a study with `wovenskin study init DIR`")
     return parse_study(path.read_text(encoding="utf-8"), str(path))
@@ -159,7 +161,7 @@ questionnaires = ["nasa_tlx", "sus"]
 
 def init_study(directory: str | Path, name: str | None = None, overwrite: bool = False) -> Path:
     """Create ``DIR/study.toml`` from the commented template; returns its path."""
-    folder = Path(directory)
+    folder = check_writable(directory, folder=True)
     folder.mkdir(parents=True, exist_ok=True)
     path = check_new_output(study_file(folder), overwrite, "a study definition")
     defaults = StudyDefinition(name="template")  # the template states the defaults
