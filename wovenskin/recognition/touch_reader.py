@@ -16,7 +16,8 @@ the touch from its first contact to now instead, frame by frame and causally:
 2. *Whether it is happening.*  A reading counts only when the touch shows its motion:
    a swipe ``min_travel_mm`` of straight coherent travel that has hardly turned, a circle
    ``min_turn`` turns, a pinch ``min_spread_mm`` of spread change with the right fingers,
-   a push a pressure rise of ``press_ratio`` over ``press_span_s`` with no travel, at
+   a push the pressure risen ``press_ratio`` times over its least of the last 0.4 s
+   (:class:`~wovenskin.tracking.touch.TouchSettings`' ``press_span_s``) with no travel, at
    least ``press_after_s`` into the touch (a landing ramps in faster; such a press also
    adds ``press_evidence`` to push's score).  And the network must have given the gesture
    at least ``net_peak`` (smoothed over ``net_smoothing_s``; ``press_net_peak`` for a push,
@@ -72,7 +73,6 @@ class ReaderSettings:
     five_finger_radius_mm: float = 18.0
     pinch_separation_mm: float = 30.0
     press_ratio: float = 1.3
-    press_span_s: float = 0.1
     press_after_s: float = 0.15
     press_max_travel_mm: float = 4.0
     press_evidence: float = 4.0  # log units a press adds to push
@@ -167,6 +167,12 @@ class TouchRecognizer:
         self.reading: str | None = None
         self.state: TouchState | None = None
 
+    def _score(self, st: TouchState) -> np.ndarray:
+        """Each valid class's score (module doc, step 1): the log of the network's windows
+        averaged over the touch (renormalised without ``invalid``) plus the geometry."""
+        mean = self._sum / self._count
+        return np.log(mean / max(float(mean.sum()), _FLOOR) + _FLOOR) + self._geometry(st)
+
     def _geometry(self, st: TouchState) -> np.ndarray:
         """Each valid class's log evidence from the touch's geometry (see the module doc)."""
         s, k = self.settings, self._kinds
@@ -257,8 +263,7 @@ class TouchRecognizer:
         if len(self._recent) > self._smooth:
             self._recent_sum -= self._recent.popleft()
         self._peak = np.maximum(self._peak, self._recent_sum / len(self._recent))
-        mean = self._sum / self._count
-        score = np.log(mean / max(float(mean.sum()), _FLOOR) + _FLOOR) + self._geometry(st)
+        score = self._score(st)
         j = int(np.argmax(score))
         spec = self.specs[j]
         least = (
@@ -286,18 +291,14 @@ class TouchRecognizer:
         This is what the dashboard's bars show, not the latest window alone."""
         if not self._count or self.state is None:
             return None
-        mean = self._sum / self._count
-        score = np.log(mean / max(float(mean.sum()), _FLOOR) + _FLOOR) + self._geometry(self.state)
+        score = self._score(self.state)
         soft = np.exp(score - score.max())
         soft /= soft.sum()
-        invalid = 0.0 if self.reading is not None else self._invalid_mean()
+        invalid = 0.0 if self.reading is not None else self._invalid_sum / self._count
         row = np.zeros(len(self.class_names), dtype=np.float32)
         row[self.valid] = (1.0 - invalid) * soft
         row[self.invalid] = invalid
         return row
-
-    def _invalid_mean(self) -> float:
-        return float(self._invalid_sum / self._count) if self._count else 1.0
 
     @property
     def tracks(self) -> list[Track]:
