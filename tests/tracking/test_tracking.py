@@ -130,3 +130,13 @@ def test_a_finger_joining_the_touch_restarts_its_coherent_motion() -> None:
     assert abs(st.dx) < 1.5 and abs(before.dx) > 3.0  # the jump toward the finger: no motion
     assert -26.0 < st.dy < -15.0
     assert abs(st.turning) < 0.2 < abs(before.turning)  # radians: the stroke turns no more
+
+
+def test_a_blob_split_in_two_is_two_fingertips_but_one_peak() -> None:
+    """The finger evidence counts distinct peaks: a broad fingertip split by its shape
+    must not count as two fingers twice (its length already counts once)."""
+    pair = [(51.0, 45.0), (75.0, 45.0)]  # 24 mm apart: one blob, one peak, split in two
+    merged = _read([pair] * 20, sd_mm=6.0).state
+    assert merged.sustained_fingertips == 2 and merged.sustained_peaks == 1
+    apart = _read([[(30.0, 20.0), (90.0, 70.0)]] * 20).state  # two peaks of their own
+    assert apart.sustained_fingertips == 2 and apart.sustained_peaks == 2

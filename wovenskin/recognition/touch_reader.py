@@ -101,9 +101,11 @@ class ReaderSettings:
 
 
 def _finger_evidence(state: TouchState, s: ReaderSettings) -> float:
-    """Evidence for two fingers over one (log units, clipped to +-3)."""
+    """Evidence for two fingers over one (log units): the blob's length (clipped to +-3),
+    plus 1 when two distinct peaks stayed together.  A blob split in two by its shape
+    adds nothing more: its length already spoke, and a broad fingertip would count twice."""
     shape = s.finger_weight * (state.major_sd - s.two_finger_sd_mm)
-    return float(np.clip(shape, -3.0, 3.0)) + (1.0 if state.sustained_fingertips >= 2 else 0.0)
+    return float(np.clip(shape, -3.0, 3.0)) + (1.0 if state.sustained_peaks >= 2 else 0.0)
 
 
 class TouchRecognizer:

@@ -113,6 +113,7 @@ class TouchState:
     peak_strength: float = 0.0
     fingertips: int = 0  # fingertips now
     sustained_fingertips: int = 0  # most present together for sustain_s
+    sustained_peaks: int = 0  # the same for distinct peaks (a blob split in two counts once)
     max_separation: float = 0.0  # largest distance between two fingertips so far
     separation: float = 0.0  # distance between the two farthest fingertips now
     major_sd: float = 0.0  # mean major-axis spread of the strongest blob, steady frames
@@ -179,6 +180,7 @@ class TouchReader:
         self._strengths: deque[tuple[int, float]] = deque()  # running minimum (frame, strength)
         self._heading: tuple[float, float] | None = None
         self._runs: dict[int, int] = {}
+        self._peak_run = 0  # frames in a row with two distinct peaks or more
         self._major_sum = 0.0
         self._major_n = 0
         self._most_peaks = 0
@@ -308,6 +310,12 @@ class TouchReader:
             self._runs[k] = self._runs.get(k, 0) + 1 if n >= k else 0
             if self._runs[k] >= self._sustain:
                 st.sustained_fingertips = max(st.sustained_fingertips, k)
+        peaks = contacts.peak_count
+        self._peak_run = self._peak_run + 1 if peaks >= 2 else 0
+        if self._peak_run >= self._sustain:
+            st.sustained_peaks = max(st.sustained_peaks, 2)
+        elif peaks >= 1:
+            st.sustained_peaks = max(st.sustained_peaks, 1)
         if n >= 2:
             dy = contacts.y[:, None] - contacts.y[None, :]
             dx = contacts.x[:, None] - contacts.x[None, :]
