@@ -69,3 +69,64 @@ def test_a_bad_path_is_one_line_naming_it(command, args, tmp_path, monkeypatch) 
     named = [a for a in args if not a.startswith("--") and a not in ("1", "out.npz")][0]
     assert named.split("/")[0] in lines[0], lines[0]
     assert ".partial" not in lines[0]
+
+
+def _numeric_options() -> list[tuple[str, str, float, float, type]]:
+    """``(command, option, least, most, int or float)`` for every numeric option."""
+    import typing
+
+    import typer
+
+    from wovenskin.cli import app
+
+    def walk(command, path):
+        subs = getattr(command, "commands", None)
+        if subs:
+            for name, sub in subs.items():
+                yield from walk(sub, [*path, name])
+        else:
+            yield " ".join(path), command
+
+    found = []
+    for path, command in walk(typer.main.get_command(app), []):
+        for param in command.params:
+            annotation = param.type_descriptor.annotation
+            kinds = set(typing.get_args(annotation) or (annotation,)) - {type(None)}
+            if kinds and kinds <= {int, float}:
+                found.append((path, param.opts[0], param.min, param.max, kinds.pop()))
+    return found
+
+
+NUMERIC_OPTIONS = _numeric_options()
+
+
+def test_every_numeric_option_declares_its_range() -> None:
+    assert len(NUMERIC_OPTIONS) > 100
+    unbounded = [f"{c} {o}" for c, o, least, most, _ in NUMERIC_OPTIONS if None in (least, most)]
+    assert not unbounded, f"numeric options without a declared range: {unbounded}"
+
+
+def _outside(least: float, most: float, kind: type) -> list[str]:
+    below = least - 1 if kind is int else least - max(1.0, abs(least))
+    above = most + 1 if kind is int else most * 10 + 1
+    values = [str(int(below) if kind is int else below), str(int(above) if kind is int else above)]
+    return [*values, "nan", "abc"]
+
+
+@pytest.mark.parametrize(
+    ("command", "option", "value"),
+    [
+        (command, option, value)
+        for command, option, least, most, kind in NUMERIC_OPTIONS
+        for value in _outside(least, most, kind)
+    ],
+)
+def test_an_out_of_range_number_is_one_line_naming_it(command, option, value) -> None:
+    """Refused before the command runs: exit 2, one line with the user's own option and
+    value, no traceback."""
+    result = invoke(*command.split(), f"{option}={value}")
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert f"{option} {value}" in lines[0], lines[0]

@@ -155,7 +155,7 @@ def test_train_without_data_builds_the_default_set(tmp_path, monkeypatch):
         (["--model", "gru"], "unknown model 'gru'"),
         (["--split", "all"], "cannot train on split 'all'"),
         (["--captures", "x.npz"], "give --data or --captures, not both"),
-        (["--epochs", "0"], "bad training settings: epochs: Input should be greater than 0"),
+        (["--epochs", "0"], "--epochs 0: Input should be greater than or equal to 1"),
     ],
 )
 def test_train_errors_are_one_line(dataset_run, tmp_path, args, message):

@@ -81,8 +81,8 @@ def test_replay_uses_the_shipped_model_by_default(
     [
         (["missing.npz"], "no such file"),
         (["STREAM", "--model", "nowhere"], "no such model directory"),
-        (["STREAM", "--every", "0"], "every must be an integer >= 1"),
-        (["STREAM", "--min-probability", "2"], "min_probability"),
+        (["STREAM", "--every", "0"], "--every 0: Input should be greater than or equal to 1"),
+        (["STREAM", "--min-probability", "2"], "--min-probability 2: Input should be less"),
         (["BAD"], "bad.npz"),
     ],
 )

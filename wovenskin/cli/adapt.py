@@ -38,21 +38,31 @@ def adapt(
         "not recorded, and recorded ones it gives no action.",
     ),
     held_out: float = typer.Option(
-        DEFAULTS.held_out_fraction, help="Share of the trials held out to score both models."
+        DEFAULTS.held_out_fraction,
+        min=0.01,
+        max=0.99,
+        help="Share of the trials held out to score both models.",
     ),
-    epochs: int = typer.Option(DEFAULTS.epochs, help="Fine-tuning epochs."),
+    epochs: int = typer.Option(DEFAULTS.epochs, min=1, max=100000, help="Fine-tuning epochs."),
     windows: int = typer.Option(
-        DEFAULTS.user_windows, help="Gesture windows cut from the recordings."
+        DEFAULTS.user_windows, min=1, max=10000000, help="Gesture windows cut from the recordings."
     ),
     rehearsal: int = typer.Option(
         DEFAULTS.rehearsal_recordings,
+        min=0,
+        max=100000,
         help="Simulated other people mixed into training so the model does not forget "
         "them (0: none).",
     ),
     seed: int = typer.Option(
-        DEFAULTS.seed, help="Seed of the split, the rehearsal people and training."
+        DEFAULTS.seed,
+        min=0,
+        max=2**32 - 1,
+        help="Seed of the split, the rehearsal people and training.",
     ),
-    threads: int = typer.Option(DEFAULTS.threads, help="Torch and ONNX Runtime threads."),
+    threads: int = typer.Option(
+        DEFAULTS.threads, min=1, max=256, help="Torch and ONNX Runtime threads."
+    ),
     force: bool = typer.Option(
         False, help="Install the adapted model even if it scores worse than the base."
     ),

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import typer
+import typer.core
 from rich.console import Console
 from rich.markup import escape
 
@@ -23,12 +24,84 @@ from wovenskin.robots.base import RobotError
 if TYPE_CHECKING:
     from rich.progress import Progress, TaskID
 
+
+def _click_class(name: str) -> type[Exception]:
+    """Click's exception class ``name`` as this typer uses it (its own copy of click, or
+    click itself), found on the public :class:`typer.BadParameter`'s ancestry."""
+    return next(c for c in typer.BadParameter.__mro__ if c.__name__ == name)
+
+
+_UsageError = _click_class("UsageError")
+_ClickException = _click_class("ClickException")
+
+
+def _given(words: list[str], hint: str) -> str:
+    """The user's own words for the parameter ``hint`` (``'--port'``): ``--port 99999``."""
+    names = [name.strip("'\"") for name in hint.split("/")]
+    for k in reversed(range(len(words))):  # the last given counts, as click reads it
+        word = words[k]
+        for name in names:
+            if word == name and k + 1 < len(words):
+                return f"{name} {words[k + 1]}"
+            if word.startswith(f"{name}="):
+                return word.replace("=", " ", 1)
+    return names[0] if names else hint
+
+
+def usage_line(exc: Exception, words: list[str]) -> str:
+    """One line for a usage error: the command, the user's own argument, what is wrong
+    and where help is (click's own form spreads over four lines and drops the value)."""
+    ctx = getattr(exc, "ctx", None)
+    command = ctx.command_path if ctx is not None else "wovenskin"
+    param = getattr(exc, "param", None)
+    hint = getattr(exc, "param_hint", None)
+    if hint is None and param is not None:
+        hint = param.get_error_hint()
+    if isinstance(hint, list | tuple):
+        hint = "/".join(hint)
+    if hint and type(exc).__name__ != "MissingParameter":
+        message = f"{_given(words, hint)}: {exc.message}"
+    else:
+        message = exc.format_message()
+    return " ".join(f"{command}: {message} (see {command} --help)".split())
+
+
+class _OneLineErrors(typer.core.TyperGroup):
+    """The root command: a usage error (a value out of range, an unknown option) is one
+    red line naming the user's own argument, exit code 2, as every other error is."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):  # noqa: ANN001, ANN201 - click's signature
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, False, **extra)
+        words = list(sys.argv[1:] if args is None else args)
+        try:
+            code = super().main(words, prog_name, complete_var, False, **extra)
+        except _UsageError as exc:
+            if type(exc).__name__ == "NoArgsIsHelpError":  # no arguments: the help
+                exc.show()
+            else:
+                err_console.print(
+                    f"[red]error:[/] {escape(usage_line(exc, words))}",
+                    soft_wrap=True,
+                    highlight=False,
+                )
+            sys.exit(exc.exit_code)
+        except _ClickException as exc:
+            exc.show()
+            sys.exit(exc.exit_code)
+        except typer.Abort:
+            err_console.print("Aborted!", highlight=False)
+            sys.exit(1)
+        sys.exit(code if type(code) is int else 0)
+
+
 HELP_STYLE = None
 """Every command's help is click's plain text (``rich_markup_mode=None``), which rewraps
 each paragraph at words to the terminal's width; Rich's option table cut long values such
 as ``serial:PORT[?format=...]`` with an ellipsis."""
 
 app = typer.Typer(
+    cls=_OneLineErrors,
     help="Gesture control of a robot arm with a woven capacitive tactile skin.",
     no_args_is_help=True,
     add_completion=False,
@@ -213,10 +286,13 @@ MODEL_HELP = "Checkpoint directory with model.onnx (default: the shipped model).
 
 # Options several commands share, defined once (typer reads a default OptionInfo per use).
 MODEL = typer.Option(None, help=MODEL_HELP)
-THREADS = typer.Option(None, help="ONNX Runtime threads for the model (default 1).")
+THREADS = typer.Option(None, min=1, max=256, help="ONNX Runtime threads for the model (default 1).")
 JSON_OUT = typer.Option(False, "--json", help="Print one JSON object.")
 MIN_PROBABILITY = typer.Option(
-    None, help="Least class probability that counts (default: the model's recommendation)."
+    None,
+    min=0.0,
+    max=1.0,
+    help="Least class probability that counts (default: the model's recommendation).",
 )
 READER = typer.Option(
     None,
@@ -261,8 +337,6 @@ def pipeline_settings(
     )
 
 
-
-
 def require_torch(command: str) -> None:
     """Refuse a training command in one line when PyTorch is not installed."""
     import importlib.util
@@ -270,6 +344,4 @@ def require_torch(command: str) -> None:
     if importlib.util.find_spec("torch") is None:
         from wovenskin.wording import train_extra_hint
 
-        raise ConfigError(
-            f"{command} needs PyTorch, which is not installed: {train_extra_hint()}"
-        )
+        raise ConfigError(f"{command} needs PyTorch, which is not installed: {train_extra_hint()}")

@@ -33,7 +33,9 @@ from wovenskin.errors import ConfigError
 @bench_app.command("io")
 @user_errors
 def bench_io(
-    frames: int = typer.Option(20000, help="Frames to push through each stage."),
+    frames: int = typer.Option(
+        20000, min=1, max=100000000, help="Frames to push through each stage."
+    ),
     json_out: bool = JSON_OUT,
 ) -> None:
     """Decode and conditioning throughput for a 10 x 10 skin on one core."""
@@ -47,8 +49,10 @@ def bench_io(
 @bench_app.command("serial")
 @user_errors
 def bench_serial(
-    stalls: int = typer.Option(10, help="Device stalls to time."),
-    stall_ms: float = typer.Option(30.0, help="The reader's stall threshold."),
+    stalls: int = typer.Option(10, min=0, max=10000, help="Device stalls to time."),
+    stall_ms: float = typer.Option(
+        30.0, min=0.0, max=10000.0, help="The reader's stall threshold."
+    ),
     json_out: bool = JSON_OUT,
 ) -> None:
     """Serial reader over a real pseudo-terminal: frames, errors, stall-report delay."""
@@ -62,7 +66,9 @@ def bench_serial(
 @bench_app.command("sim")
 @user_errors
 def bench_sim(
-    seconds: float = typer.Option(60.0, help="Length of the simulated stream to time."),
+    seconds: float = typer.Option(
+        60.0, min=0.1, max=3600, help="Length of the simulated stream to time."
+    ),
     json_out: bool = JSON_OUT,
 ) -> None:
     """How many times faster than real time the simulated skin renders, on one core."""
@@ -77,9 +83,15 @@ def bench_sim(
 @user_errors
 def bench_live(
     model: Path = MODEL,
-    streams: int = typer.Option(None, help="Independent mixed streams to time (default 2)."),
-    seconds: float = typer.Option(None, help="Length of each stream (default 60)."),
-    seed: int = typer.Option(None, help="Seed of the first stream (default 23000)."),
+    streams: int = typer.Option(
+        None, min=1, max=100000, help="Independent mixed streams to time (default 2)."
+    ),
+    seconds: float = typer.Option(
+        None, min=0.1, max=3600, help="Length of each stream (default 60)."
+    ),
+    seed: int = typer.Option(
+        None, min=0, max=2**32 - 1, help="Seed of the first stream (default 23000)."
+    ),
     json_out: bool = JSON_OUT,
 ) -> None:
     """The live path on one core: conditioning, the network, tracking and reading, the
@@ -98,8 +110,8 @@ def bench_live(
 @bench_app.command("detection")
 @user_errors
 def bench_detection(
-    seeds: int = typer.Option(20, help="Simulated skins/people (seeds 0..N-1)."),
-    seconds: float = typer.Option(60.0, help="Length of each simulated stream."),
+    seeds: int = typer.Option(20, min=1, max=100000, help="Simulated skins/people (seeds 0..N-1)."),
+    seconds: float = typer.Option(60.0, min=0.1, max=3600, help="Length of each simulated stream."),
 ) -> None:
     """Contact detection against the simulator's ground truth: phantoms, misses, release."""
     from wovenskin.bench.detection import run_detection_benchmark
@@ -115,8 +127,12 @@ def bench_detection(
 @bench_app.command("tracking")
 @user_errors
 def bench_tracking(
-    trials: int = typer.Option(None, help="Simulated performances per gesture (default 3)."),
-    seed: int = typer.Option(None, help="Base seed of the trials (default 31000)."),
+    trials: int = typer.Option(
+        None, min=1, max=10000, help="Simulated performances per gesture (default 3)."
+    ),
+    seed: int = typer.Option(
+        None, min=0, max=2**32 - 1, help="Base seed of the trials (default 31000)."
+    ),
     json_out: bool = JSON_OUT,
 ) -> None:
     """Contact tracks against the simulator's ground-truth fingertips: count, position, identity."""
@@ -138,11 +154,15 @@ def bench_tracking(
 def bench_recognition(
     model: Path = MODEL,
     streams_per_condition: int = typer.Option(
-        None, help="Unseen simulated streams per condition (default 3)."
+        None, min=1, max=100000, help="Unseen simulated streams per condition (default 3)."
     ),
-    seconds: float = typer.Option(None, help="Length of each simulated stream (default 60)."),
+    seconds: float = typer.Option(
+        None, min=0.1, max=3600, help="Length of each simulated stream (default 60)."
+    ),
     seed: int = typer.Option(
         None,
+        min=0,
+        max=2**32 - 1,
         help="Base seed; each stream's seed derives from it, the condition and the stream "
         "(default 9000).",
     ),
@@ -191,29 +211,39 @@ def bench_recognition(
 def bench_gestures(
     model: Path = MODEL,
     streams: int = typer.Option(
-        None, help="Mixed independent streams for recognition (default 4; 0: none)."
+        None,
+        min=1,
+        max=100000,
+        help="Mixed independent streams for recognition (default 4; 0: none).",
     ),
-    seconds: float = typer.Option(None, help="Length of each mixed stream (default 120)."),
+    seconds: float = typer.Option(
+        None, min=0.1, max=3600, help="Length of each mixed stream (default 120)."
+    ),
     seed: int = typer.Option(
         None,
+        min=0,
+        max=2**32 - 1,
         help="Base seed: mixed streams seed, seed+1, ...; flicks seed+1000+k; held "
         "swipes seed+2000+k (default 22000).",
     ),
     flicks: int = typer.Option(
-        None, help="Flicks through the simulated arm (default 40; 0: none)."
+        None, min=0, max=10000, help="Flicks through the simulated arm (default 40; 0: none)."
     ),
     held: int = typer.Option(
-        None, help="Held swipes through the simulated arm (default 14; 0: none)."
+        None, min=0, max=10000, help="Held swipes through the simulated arm (default 14; 0: none)."
     ),
     hold: float = typer.Option(
-        None, help="Seconds a held swipe's finger stays still (default 2.5)."
+        None, min=0.1, max=600.0, help="Seconds a held swipe's finger stays still (default 2.5)."
     ),
     save_streams: Path = typer.Option(
         None, help="Folder to keep every generated stream in (labelled-stream .npz)."
     ),
     gain_scale: float = typer.Option(
-        None, help="The mixed streams' skins respond this many times as strongly as drawn "
-        "(0.12: a weak skin, 3: a strong one; default 1)."
+        None,
+        min=0.01,
+        max=100.0,
+        help="The mixed streams' skins respond this many times as strongly as drawn "
+        "(0.12: a weak skin, 3: a strong one; default 1).",
     ),
     min_probability: float = MIN_PROBABILITY,
     reader: str | None = READER,
@@ -250,15 +280,24 @@ def bench_gestures(
 @bench_app.command("adapt")
 @user_errors
 def bench_adapt(
-    people: int = typer.Option(2, help="New people (each with their own skin) to adapt to."),
+    people: int = typer.Option(
+        2, min=1, max=1000, help="New people (each with their own skin) to adapt to."
+    ),
     weak: bool = typer.Option(True, help="Weak skins: a fifth of a typical skin's change."),
-    seconds: float = typer.Option(120.0, help="Length of each person's recording."),
-    tests: int = typer.Option(3, help="Further streams of each person to score on."),
+    seconds: float = typer.Option(
+        120.0, min=0.1, max=3600, help="Length of each person's recording."
+    ),
+    tests: int = typer.Option(
+        3, min=1, max=1000, help="Further streams of each person to score on."
+    ),
     custom: bool = typer.Option(False, help="Add two gestures of the people's own."),
     out: Path = typer.Option(Path("runs/bench/adapt"), help="Folder for recordings and models."),
     base: Path = typer.Option(None, help="Model to adapt (default: the shipped model)."),
     seed: int = typer.Option(
-        None, help="Person i and their skin are drawn with seed + i (default: the bench's SEED)."
+        None,
+        min=0,
+        max=2**32 - 1,
+        help="Person i and their skin are drawn with seed + i (default: the bench's SEED).",
     ),
     json_out: bool = JSON_OUT,
 ) -> None:
@@ -282,7 +321,9 @@ def bench_adapt(
 @bench_app.command("ros2")
 @user_errors
 def bench_ros2(
-    seconds: float = typer.Option(30.0, help="Length of the simulated stream replayed."),
+    seconds: float = typer.Option(
+        30.0, min=0.1, max=3600, help="Length of the simulated stream replayed."
+    ),
     out: Path = typer.Option(Path("runs/bench/ros2"), help="Folder for logs and recordings."),
     json_out: bool = JSON_OUT,
 ) -> None:
@@ -303,10 +344,14 @@ def bench_ros2(
 @bench_app.command("model")
 @user_errors
 def bench_model(
-    repeats: int = typer.Option(500, help="Timed batch-1 calls per model and runtime."),
-    batch_size: int = typer.Option(256, help="Batch of the throughput figures."),
+    repeats: int = typer.Option(
+        500, min=1, max=10000000, help="Timed batch-1 calls per model and runtime."
+    ),
+    batch_size: int = typer.Option(256, min=1, max=65536, help="Batch of the throughput figures."),
     shipped: bool = typer.Option(True, help="Also time the shipped default model."),
-    seconds: float = typer.Option(1.0, help="Seconds of calls behind each throughput figure."),
+    seconds: float = typer.Option(
+        1.0, min=0.1, max=600.0, help="Seconds of calls behind each throughput figure."
+    ),
     json_out: bool = JSON_OUT,
 ) -> None:
     """Per-window latency (batch 1, one thread) and throughput on ONNX Runtime and torch."""
@@ -329,10 +374,16 @@ def bench_model(
 @user_errors
 def bench_control(
     model: Path = MODEL,
-    loop_seconds: float = typer.Option(5.0, help="Seconds of the real-time control loop."),
-    streams: int = typer.Option(2, help="Simulated streams behind the latency figures."),
-    stream_seconds: float = typer.Option(40.0, help="Length of each simulated stream."),
-    ik_steps: int = typer.Option(1000, help="Timed IK steps."),
+    loop_seconds: float = typer.Option(
+        5.0, min=0.1, max=3600, help="Seconds of the real-time control loop."
+    ),
+    streams: int = typer.Option(
+        2, min=1, max=100000, help="Simulated streams behind the latency figures."
+    ),
+    stream_seconds: float = typer.Option(
+        40.0, min=0.1, max=3600, help="Length of each simulated stream."
+    ),
+    ik_steps: int = typer.Option(1000, min=1, max=10000000, help="Timed IK steps."),
     stops: bool = typer.Option(
         True, "--stops/--no-stops", help="Measure stop times after release, STOP and watchdog."
     ),
@@ -360,9 +411,13 @@ def bench_control(
 @user_errors
 def bench_tasks(
     task: str = typer.Option("pour", help="The task scene: pour or pick_place."),
-    seconds: float = typer.Option(5.0, help="Simulated seconds per measurement."),
-    tick: float = typer.Option(0.02, help="Control tick in seconds."),
-    seed: int = typer.Option(0, help="Seed of the scene and the simulated person."),
+    seconds: float = typer.Option(
+        5.0, min=0.1, max=3600, help="Simulated seconds per measurement."
+    ),
+    tick: float = typer.Option(0.02, min=0.001, max=1.0, help="Control tick in seconds."),
+    seed: int = typer.Option(
+        0, min=0, max=2**32 - 1, help="Seed of the scene and the simulated person."
+    ),
     json_out: bool = JSON_OUT,
 ) -> None:
     """Real-time factor of a study task's physics: alone, with the arm under control, and
@@ -377,8 +432,12 @@ def bench_tasks(
 @bench_app.command("safety")
 @user_errors
 def bench_safety(
-    episodes: int = typer.Option(40, help="Episodes of random twists (6 commands each)."),
-    seed: int = typer.Option(0, help="Seed of the random postures and twists."),
+    episodes: int = typer.Option(
+        40, min=1, max=100000, help="Episodes of random twists (6 commands each)."
+    ),
+    seed: int = typer.Option(
+        0, min=0, max=2**32 - 1, help="Seed of the random postures and twists."
+    ),
     json_out: bool = JSON_OUT,
 ) -> None:
     """The safety layer's adversarial probe on the simulated arm: joint-margin clearance
@@ -396,20 +455,27 @@ def bench_safety(
 def bench_dashboard(
     model: Path = MODEL,
     idle_seconds: float = typer.Option(
-        None, help="Seconds of page states counted while idle (default 5)."
+        None, min=0.1, max=3600, help="Seconds of page states counted while idle (default 5)."
     ),
     swipes: int = typer.Option(
-        None, help="Swipes sent over the socket, alternately up and down (default 6)."
+        None,
+        min=1,
+        max=10000,
+        help="Swipes sent over the socket, alternately up and down (default 6).",
     ),
     ui_rate: float = typer.Option(
-        None, help="Page updates per second asked of the server (default 40)."
+        None, min=1.0, max=240.0, help="Page updates per second asked of the server (default 40)."
     ),
     rounds: int = typer.Option(
-        2, help="Rounds of the 14 gestures drawn as on a touch screen (0: none)."
+        2, min=1, max=10000, help="Rounds of the 14 gestures drawn as on a touch screen (0: none)."
     ),
-    seed: int = typer.Option(0, help="Seed of the simulated people who draw the gestures."),
+    seed: int = typer.Option(
+        0, min=0, max=2**32 - 1, help="Seed of the simulated people who draw the gestures."
+    ),
     mouse_rounds: int = typer.Option(
         2,
+        min=0,
+        max=10000,
         help="Rounds of the gestures a mouse draws (swipes 40-90 mm at 70-250 mm/s, circles, "
         "push), each densely and sparsely sampled (0: none).",
     ),

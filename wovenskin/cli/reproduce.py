@@ -21,9 +21,11 @@ def reproduce(
     haart: Path = typer.Option(
         None, help="HAART labelled captures (.npz): real human touch, leave-one-participant-out."
     ),
-    jobs: int = typer.Option(None, min=1, help="Simulated trials run at once (default: 2)."),
+    jobs: int = typer.Option(
+        None, min=1, max=256, help="Simulated trials run at once (default: 2)."
+    ),
     trials: int = typer.Option(
-        None, min=1, help="Trials per task and interface (default: 10; --quick: 1)."
+        None, min=1, max=10000, help="Trials per task and interface (default: 10; --quick: 1)."
     ),
     hands: str = typer.Option(
         None, help="The simulated study's hands (default independent): independent or sim."

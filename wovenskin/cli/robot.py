@@ -62,12 +62,16 @@ def run(
     open_browser: bool = typer.Option(
         True, "--open/--no-open", help="Open the dashboard in the default web browser."
     ),
-    ui_rate: float = typer.Option(None, help="Dashboard updates per second, 30-60 (default 40)."),
+    ui_rate: float = typer.Option(
+        None, min=1.0, max=240.0, help="Dashboard updates per second, 30-60 (default 40)."
+    ),
     trace: str = typer.Option(
         None, help="Write a JSON line per control tick to this .jsonl file ('-': stdout)."
     ),
     record: Path = typer.Option(None, help="Record the session (.wsrec): skin, commands, robot."),
-    seconds: float = typer.Option(None, help="Stop after this many seconds of skin time."),
+    seconds: float = typer.Option(
+        None, min=0.01, max=604800, help="Stop after this many seconds of skin time."
+    ),
     mapping: Path = typer.Option(None, help="Action mapping TOML (default: the packaged one)."),
     poses: Path = POSES,
     overwrite: bool = typer.Option(False, help="Replace existing --trace / --record files."),

@@ -20,18 +20,27 @@ app.add_typer(ros2_app, name="ros2")
 @ros2_app.command("servo-standin")
 @user_errors
 def servo_standin(
-    domain: int = typer.Option(None, help="ROS domain id (default: ROS_DOMAIN_ID, else 0)."),
+    domain: int = typer.Option(
+        None, min=0, max=232, help="ROS domain id (default: ROS_DOMAIN_ID, else 0)."
+    ),
     twist: str = typer.Option("/servo_node/delta_twist_cmds", help="TwistStamped topic taken."),
     joints: str = typer.Option("/joint_states", help="JointState topic published."),
     servo: str = typer.Option("/servo_node", help="Node name of its switch_command_type."),
-    rate: float = typer.Option(100.0, help="Integration and joint-state rate, Hz (10-1000)."),
+    rate: float = typer.Option(
+        100.0, min=1.0, max=1000.0, help="Integration and joint-state rate, Hz (10-1000)."
+    ),
     urdf: Path = typer.Option(None, help="The arm's URDF (default: the packaged TM5-900)."),
     base: str = typer.Option(None, help="The URDF's base link (with --urdf)."),
     tip: str = typer.Option(None, help="The URDF's tip link, Servo's ee_frame (with --urdf)."),
     log: Path = typer.Option(None, help="Write every twist received as a JSON line here."),
-    seconds: float = typer.Option(None, help="Stop after this long (default: Ctrl-C)."),
+    seconds: float = typer.Option(
+        None, min=0.01, max=604800, help="Stop after this long (default: Ctrl-C)."
+    ),
     silence_after: float = typer.Option(
-        None, help="Stop publishing joint states this long after the arm starts moving."
+        None,
+        min=0.0,
+        max=86400.0,
+        help="Stop publishing joint states this long after the arm starts moving.",
     ),
     any_mode: bool = typer.Option(
         False, "--any-mode", help="Follow twists without a switch_command_type call first."

@@ -20,12 +20,21 @@ from wovenskin.cli.app import (
 @user_errors
 def view(
     skin: str = typer.Option("sim", help=SKIN_HELP),
-    seconds: float = typer.Option(None, help="Stop after this many seconds (default: Ctrl-C)."),
-    fps: float = typer.Option(None, help="Display updates per second (default 25)."),
-    full_scale: float = typer.Option(
-        0.0, help="Relative change shown at full brightness (0: follow the signal)."
+    seconds: float = typer.Option(
+        None, min=0.01, max=604800, help="Stop after this many seconds (default: Ctrl-C)."
     ),
-    smoothing_ms: float = typer.Option(None, help="Moving-average length in ms (default 100)."),
+    fps: float = typer.Option(
+        None, min=1.0, max=240.0, help="Display updates per second (default 25)."
+    ),
+    full_scale: float = typer.Option(
+        0.0,
+        min=0.0,
+        max=1000.0,
+        help="Relative change shown at full brightness (0: follow the signal).",
+    ),
+    smoothing_ms: float = typer.Option(
+        None, min=0.0, max=5000.0, help="Moving-average length in ms (default 100)."
+    ),
     snapshot: Path = typer.Option(None, help="Save the last screen as an SVG file at exit."),
     overwrite: bool = typer.Option(False, help="Replace an existing --snapshot file."),
 ) -> None:
@@ -65,12 +74,16 @@ def _config_for(smoothing_ms: float | None):
 @user_errors
 def simulate(
     out: Path = typer.Option(..., help="Labelled-stream .npz to write (docs/formats.md)."),
-    seconds: float = typer.Option(60.0, help="Length of the stream."),
-    seed: int = typer.Option(1, help="Random seed: the same seed gives the same file."),
-    rows: int = typer.Option(None, help="Skin rows (default 10)."),
-    cols: int = typer.Option(None, help="Skin columns (default 10)."),
+    seconds: float = typer.Option(60.0, min=0.1, max=3600, help="Length of the stream."),
+    seed: int = typer.Option(
+        1, min=0, max=2**32 - 1, help="Random seed: the same seed gives the same file."
+    ),
+    rows: int = typer.Option(None, min=1, max=64, help="Skin rows (default 10)."),
+    cols: int = typer.Option(None, min=1, max=64, help="Skin columns (default 10)."),
     gestures: str = typer.Option("", help="Comma-separated gestures to draw from (default: all)."),
-    invalid_fraction: float = typer.Option(0.25, help="Share of events that are invalid touches."),
+    invalid_fraction: float = typer.Option(
+        0.25, min=0.0, max=1.0, help="Share of events that are invalid touches."
+    ),
     overwrite: bool = typer.Option(False, help="Replace an existing file."),
 ) -> None:
     """Write a labelled stream of a simulated person on a simulated skin."""
@@ -108,7 +121,7 @@ def record(
     participant: str = typer.Option("anonymous", help="Who performs the gestures."),
     operator: str = typer.Option("", help="Who runs the session."),
     skin_id: str = typer.Option("", help="Which physical skin (default: the device id)."),
-    trials: int = typer.Option(None, help="Trials per gesture (default 3)."),
+    trials: int = typer.Option(None, min=1, max=10000, help="Trials per gesture (default 3)."),
     gestures: str = typer.Option(
         "", help="Comma-separated gestures (default: all 14, or every gesture of --mapping)."
     ),
@@ -117,13 +130,17 @@ def record(
         help="Mapping file: prompt its [gestures], custom ones (docs/custom-gestures.md) too.",
     ),
     invalid_trials: int = typer.Option(
-        None, help="Trials of deliberate invalid touches (default 3)."
+        None, min=0, max=10000, help="Trials of deliberate invalid touches (default 3)."
     ),
     countdown: float = typer.Option(
-        None, help="Seconds of countdown before each trial (default 2)."
+        None, min=0.0, max=60.0, help="Seconds of countdown before each trial (default 2)."
     ),
-    trial_seconds: float = typer.Option(None, help="Seconds to perform each trial (default 3)."),
-    seed: int = typer.Option(None, help="Seed of the trial order (default 0)."),
+    trial_seconds: float = typer.Option(
+        None, min=0.5, max=600.0, help="Seconds to perform each trial (default 3)."
+    ),
+    seed: int = typer.Option(
+        None, min=0, max=2**32 - 1, help="Seed of the trial order (default 0)."
+    ),
     notes: str = typer.Option("", help="Free notes kept in the recording."),
     overwrite: bool = typer.Option(False, help="Replace an existing file."),
 ) -> None:
@@ -235,9 +252,11 @@ def convert(
 @app.command("fake-device")
 @user_errors
 def fake_device(
-    seconds: float = typer.Option(None, help="Stop after this long (default: Ctrl-C)."),
+    seconds: float = typer.Option(
+        None, min=0.01, max=604800, help="Stop after this long (default: Ctrl-C)."
+    ),
     fmt: str = typer.Option("binary", "--format", help="binary (docs/protocol.md) or text."),
-    seed: int = typer.Option(0, help="Seed of the simulated person."),
+    seed: int = typer.Option(0, min=0, max=2**32 - 1, help="Seed of the simulated person."),
 ) -> None:
     """Run a simulated skin device on a pseudo-terminal, to test a setup without hardware."""
     from wovenskin.sim.fake_device import run_fake_device

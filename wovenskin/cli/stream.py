@@ -24,9 +24,14 @@ from wovenskin.errors import DataError
 # The options both commands share (one definition each).  Unset (None), each falls through
 # to the model's recommendation (its meta.json), then to the settings' default
 # (PipelineSettings, ArbiterSettings): cli.app.pipeline_settings.
-EVERY = typer.Option(None, help="Run the model on every K-th frame's window (default 1).")
+EVERY = typer.Option(
+    None, min=1, max=30, help="Run the model on every K-th frame's window (default 1)."
+)
 DWELL_MS = typer.Option(
-    None, help="Dwell time before a gesture acts (default: the model's recommendation, else 100)."
+    None,
+    min=0.0,
+    max=5000.0,
+    help="Dwell time before a gesture acts (default: the model's recommendation, else 100).",
 )
 
 

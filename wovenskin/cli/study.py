@@ -115,12 +115,14 @@ def study_report(
 def study_simulate(
     directory: Path = typer.Argument(..., help="A new folder for the simulated study."),
     participants: int = typer.Option(
-        None, min=1, help="Simulated operators: novice, expert, ... (default 6)."
+        None, min=1, max=1000, help="Simulated operators: novice, expert, ... (default 6)."
     ),
     trials: int = typer.Option(
-        None, min=1, help="Trials per task and interface (default 2; the paper ran 10)."
+        None, min=1, max=10000, help="Trials per task and interface (default 2; the paper ran 10)."
     ),
-    seed: int = typer.Option(0, help="Random seed (the same seed runs the same study)."),
+    seed: int = typer.Option(
+        0, min=0, max=2**32 - 1, help="Random seed (the same seed runs the same study)."
+    ),
     task: list[str] = typer.Option(
         None, help="Tasks, the option repeated (default: pick_place and pour)."
     ),
@@ -131,11 +133,14 @@ def study_simulate(
         None, help="pick_place: 'one' object a trial (the paper's, the default) or 'all'."
     ),
     time_limit: float = typer.Option(
-        None, help="Seconds a trial may run from its first command (default 300)."
+        None,
+        min=0.1,
+        max=86400.0,
+        help="Seconds a trial may run from its first command (default 300).",
     ),
     model: Path = MODEL,
     jobs: int = typer.Option(
-        None, min=1, help="Trials run at once, in worker processes (default 1)."
+        None, min=1, max=256, help="Trials run at once, in worker processes (default 1)."
     ),
     hands: str = HANDS_OPTION,
     overwrite: bool = typer.Option(False, "--overwrite", help="Write into a non-empty folder."),
@@ -236,9 +241,15 @@ def study_simulate(
 @user_errors
 def study_synthetic(
     directory: Path = typer.Argument(..., help="A new folder for the synthetic study."),
-    participants: int = typer.Option(None, min=1, help="Synthetic participants (default 6)."),
-    seed: int = typer.Option(0, help="Random seed (the same seed writes the same study)."),
-    trials: int = typer.Option(None, min=1, help="Trials per task and interface (default 2)."),
+    participants: int = typer.Option(
+        None, min=1, max=1000, help="Synthetic participants (default 6)."
+    ),
+    seed: int = typer.Option(
+        0, min=0, max=2**32 - 1, help="Random seed (the same seed writes the same study)."
+    ),
+    trials: int = typer.Option(
+        None, min=1, max=10000, help="Trials per task and interface (default 2)."
+    ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Write into a non-empty folder."),
 ) -> None:
     """Write a SYNTHETIC study (made-up numbers, labelled so in every file) to try the report."""
@@ -262,15 +273,21 @@ def study_run(
     participant: str = typer.Option(..., help="The participant's id (in study.toml)."),
     task: str = typer.Option(..., help="pick_place or pour (one of the study's tasks)."),
     interface: str = typer.Option(..., help="keyboard or skin (the pendant: the dashboard)."),
-    trials: int = typer.Option(None, min=1, help="Trials (default: the study's per condition)."),
-    first_trial: int = typer.Option(1, min=1, help="Number of the first trial (to go on)."),
+    trials: int = typer.Option(
+        None, min=1, max=10000, help="Trials (default: the study's per condition)."
+    ),
+    first_trial: int = typer.Option(
+        1, min=1, max=10000, help="Number of the first trial (to go on)."
+    ),
     skin: str = typer.Option(None, help=SKIN_HELP + " Default: none (keyboard), sim (skin)."),
     model: Path = MODEL,
     mapping: Path = typer.Option(None, help="Action mapping TOML (skin_registered needs one)."),
     time_limit: float = typer.Option(
-        None, help="Seconds from the first command (default: the study's)."
+        None, min=0.1, max=86400.0, help="Seconds from the first command (default: the study's)."
     ),
-    seconds: float = typer.Option(None, help="Stop after this many seconds of session time."),
+    seconds: float = typer.Option(
+        None, min=0.01, max=604800, help="Stop after this many seconds of session time."
+    ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Rerun trials already recorded."),
 ) -> None:
     """Run a participant's trials of one task and interface in the terminal view.

@@ -37,12 +37,28 @@ SPLIT_HELP = "grouped (recordings, people and skins never seen in training) or r
 
 # TrainConfig's settings as options: unset (None) each falls through to TrainConfig's
 # default (training/config.py, the one home; tests/cli/test_cli_defaults.py checks the help).
-BATCH_SIZE = typer.Option(None, help="Windows per training step (default 64).")
-LR = typer.Option(None, help="Peak learning rate: AdamW, warm-up, cosine decay (default 0.003).")
-PATIENCE = typer.Option(None, help="Epochs without a better validation score to stop (default 5).")
-SPLIT_SEED = typer.Option(None, help="Seed of the train/validation split (default 0).")
-SEED = typer.Option(None, help="Seed of initialisation, batch order, augmentation (default 0).")
-THREADS = typer.Option(None, help="Torch threads (default 1: fastest on a busy 2-core machine).")
+BATCH_SIZE = typer.Option(None, min=1, max=65536, help="Windows per training step (default 64).")
+LR = typer.Option(
+    None,
+    min=1e-7,
+    max=1.0,
+    help="Peak learning rate: AdamW, warm-up, cosine decay (default 0.003).",
+)
+PATIENCE = typer.Option(
+    None, min=1, max=100000, help="Epochs without a better validation score to stop (default 5)."
+)
+SPLIT_SEED = typer.Option(
+    None, min=0, max=2**32 - 1, help="Seed of the train/validation split (default 0)."
+)
+SEED = typer.Option(
+    None,
+    min=0,
+    max=2**32 - 1,
+    help="Seed of initialisation, batch order, augmentation (default 0).",
+)
+THREADS = typer.Option(
+    None, min=1, max=256, help="Torch threads (default 1: fastest on a busy 2-core machine)."
+)
 DEVICE = typer.Option(None, help=DEVICE_HELP + " Default: auto.")
 AMP = typer.Option(None, help=AMP_HELP + " Default: auto.")
 
@@ -98,20 +114,32 @@ def dataset(
         "simulating: --streams A.npz B.npz ...",
     ),
     more_streams: list[Path] = typer.Argument(None, help="More streams (after --streams)."),
-    recordings: int = typer.Option(None, help="Simulated recordings, new people (default 140)."),
-    windows: int = typer.Option(None, help="Gesture windows per recording (default 1000)."),
-    invalid_windows: int = typer.Option(None, help="Invalid windows per recording (default 400)."),
-    seconds: float = typer.Option(None, help="Seconds per simulated recording (default 120)."),
+    recordings: int = typer.Option(
+        None, min=1, max=100000, help="Simulated recordings, new people (default 140)."
+    ),
+    windows: int = typer.Option(
+        None, min=1, max=10000000, help="Gesture windows per recording (default 1000)."
+    ),
+    invalid_windows: int = typer.Option(
+        None, min=0, max=10000000, help="Invalid windows per recording (default 400)."
+    ),
+    seconds: float = typer.Option(
+        None, min=0.1, max=3600, help="Seconds per simulated recording (default 120)."
+    ),
     recipe: str = typer.Option(
         None,
         help="stream: windows at every position, labelled by what they show; "
         "overlay: the paper's augmentation (gesture slices on background noise). Default: stream.",
     ),
-    seed: int = typer.Option(0, help="Random seed: the same seed gives the same files."),
-    workers: int = typer.Option(None, help="Worker processes (default 2)."),
+    seed: int = typer.Option(
+        0, min=0, max=2**32 - 1, help="Random seed: the same seed gives the same files."
+    ),
+    workers: int = typer.Option(None, min=1, max=256, help="Worker processes (default 2)."),
     dtype: str = typer.Option(None, help="Windows stored as float16 or float32 (default float16)."),
-    rows: int = typer.Option(None, help="Simulated skin rows (default 10; streams bring theirs)."),
-    cols: int = typer.Option(None, help="Simulated skin columns (default 10)."),
+    rows: int = typer.Option(
+        None, min=1, max=64, help="Simulated skin rows (default 10; streams bring theirs)."
+    ),
+    cols: int = typer.Option(None, min=1, max=64, help="Simulated skin columns (default 10)."),
     overwrite: bool = typer.Option(False, help="Replace an existing data set."),
 ) -> None:
     """Build a window data set from simulation or labelled streams."""
@@ -160,7 +188,9 @@ def train(
     out: Path = typer.Option(None, help="Checkpoint directory (default: runs/models/MODEL-SPLIT)."),
     model: str = typer.Option(None, help="transformer (default), bilstm or tcn."),
     split: str = typer.Option("grouped", help=SPLIT_HELP),
-    epochs: int = typer.Option(None, help="Most epochs (default 3); may stop sooner."),
+    epochs: int = typer.Option(
+        None, min=1, max=100000, help="Most epochs (default 3); may stop sooner."
+    ),
     batch_size: int = BATCH_SIZE,
     lr: float = LR,
     seed: int = SEED,
@@ -168,7 +198,9 @@ def train(
     split_seed: int = SPLIT_SEED,
     hparams: str = typer.Option("", help="Model hyperparameters (JSON): '{\"n_layers\": 2}'."),
     resume: bool = typer.Option(False, help="Continue an interrupted run in the same --out."),
-    time_budget: float = typer.Option(None, help="Minutes; no epoch starts that would overrun."),
+    time_budget: float = typer.Option(
+        None, min=0.1, max=100000.0, help="Minutes; no epoch starts that would overrun."
+    ),
     threads: int = THREADS,
     overwrite: bool = typer.Option(False, help="Replace a trained model already in --out."),
     init_from: Path = typer.Option(
@@ -318,15 +350,19 @@ def eval_command(
     split: str = typer.Option(
         None, help="grouped, random or all (default: the split the model was trained on)."
     ),
-    split_seed: int = typer.Option(None, help="Seed of the split (default: the training one)."),
+    split_seed: int = typer.Option(
+        None, min=0, max=2**32 - 1, help="Seed of the split (default: the training one)."
+    ),
     out: Path = typer.Option(None, help="Report directory (default: MODEL/eval-SPLIT)."),
     captures: Path = typer.Option(None, help="Score on labelled captures (.npz) instead."),
     lopo: bool = typer.Option(
         False, help="With --captures: leave-one-participant-out training and scoring."
     ),
     arch: str = typer.Option(None, help="With --lopo: the model to train in every fold."),
-    epochs: int = typer.Option(None, help="With --lopo: most epochs per fold."),
-    threads: int = typer.Option(None, help="ONNX Runtime threads (default 1; --lopo: torch's)."),
+    epochs: int = typer.Option(None, min=1, max=100000, help="With --lopo: most epochs per fold."),
+    threads: int = typer.Option(
+        None, min=1, max=256, help="ONNX Runtime threads (default 1; --lopo: torch's)."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),
 ) -> None:
     """Score a model with ONNX Runtime: accuracy, macro-F1, per-class table, confusion matrix."""
@@ -422,7 +458,9 @@ def compare(
         "", help="Comma-separated models (default: every registered one: transformer,bilstm,tcn)."
     ),
     split: str = typer.Option("grouped", help="grouped, random or both: grouped,random."),
-    epochs: int = typer.Option(None, help="Most epochs per model (default 3); may stop sooner."),
+    epochs: int = typer.Option(
+        None, min=1, max=100000, help="Most epochs per model (default 3); may stop sooner."
+    ),
     batch_size: int = BATCH_SIZE,
     lr: float = LR,
     seed: int = SEED,
@@ -433,9 +471,13 @@ def compare(
     ),
     resume: bool = typer.Option(False, help="Continue interrupted runs in --out."),
     overwrite: bool = typer.Option(False, help="Replace a comparison already in --out."),
-    time_budget: float = typer.Option(None, help="Minutes per model and split."),
+    time_budget: float = typer.Option(
+        None, min=0.1, max=100000.0, help="Minutes per model and split."
+    ),
     threads: int = THREADS,
-    latency_repeats: int = typer.Option(None, help="Timed batch-1 calls per model (default 300)."),
+    latency_repeats: int = typer.Option(
+        None, min=1, max=10000000, help="Timed batch-1 calls per model (default 300)."
+    ),
     device: str = DEVICE,
     amp: str = AMP,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object, nothing else."),

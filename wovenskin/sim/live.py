@@ -83,6 +83,7 @@ class SimulatedSkinSource:
         invalid_fraction: float = 0.25,
         physics: SkinPhysics | None = None,
         person: Person | None = None,
+        typical_person: bool = True,
         sample_rate_hz: float = DEFAULT_SAMPLE_RATE_HZ,
         max_batch: int = 200,
         autonomous: bool = True,
@@ -90,7 +91,8 @@ class SimulatedSkinSource:
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """``max_batch``: most frames one :meth:`poll` returns when ``speed=0``;
-        ``autonomous=False``: the person rests and acts only on :meth:`perform` requests;
+        ``typical_person``: draw the person (when ``person`` is None) with
+        :meth:`Person.sample_typical`, else from the full range; ``autonomous=False``: the person rests and acts only on :meth:`perform` requests;
         ``lookahead_s``: seconds of frames rendered ahead of the wall clock; ``clock``:
         the wall clock (seconds, never going back) that paces the stream."""
         if not np.isfinite(speed) or speed < 0:
@@ -110,7 +112,9 @@ class SimulatedSkinSource:
         # A typical skin by default: a demonstration should not land on the dullest skin
         # the simulator can draw (pass ``physics`` for any other).
         self.physics = physics if physics is not None else SkinPhysics.sample_typical(rng)
-        self.person = person if person is not None else Person.sample(rng)
+        # A typical person too, so that the gesture buttons perform what they name.
+        draw = Person.sample_typical if typical_person else Person.sample
+        self.person = person if person is not None else draw(rng)
         self._model = SkinModel(self.physics, self.layout, int(rng.integers(2**31)), fs)
         self._scheduler = EventScheduler(
             rng, self.person, self.layout, gestures, invalid_fraction, idle_s, fs

@@ -26,6 +26,7 @@ from wovenskin.skin.layout import (
 LOOKAHEAD_S = 0.25  # how far ahead of the wall clock frames are rendered (default)
 DEFAULT_IDLE_S = (0.3, 1.5)  # idle gap between events, seconds (low, high)
 _GESTURE_SEPARATORS = "+|;/,"
+PERSON_RANGES = ("typical", "any")  # Person.sample_typical, Person.sample
 
 
 @dataclass(frozen=True)
@@ -33,7 +34,8 @@ class SimOptions:
     """``seed`` (random when unset), ``speed`` (1: real time, 0: as fast as polled), the
     grid (``rows``, ``cols``, ``row_pitch``/``col_pitch`` in mm), ``gestures`` to draw
     from (``swipe_up+push``), ``idle`` gaps (``SECONDS`` or ``LOW-HIGH``), the ``invalid``
-    share of events, ``auto`` (0: the person acts only on requests) and ``lookahead`` (s)."""
+    share of events, ``auto`` (0: the person acts only on requests), ``lookahead`` (s) and
+    ``person`` (``typical``: habits of the middle of the range; ``any``: the full range)."""
 
     seed: int | None = None
     speed: float = 1.0
@@ -46,8 +48,13 @@ class SimOptions:
     invalid: float = 0.25
     auto: bool = True
     lookahead: float = LOOKAHEAD_S
+    person: str = "typical"
 
     def __post_init__(self) -> None:
+        if self.person not in PERSON_RANGES:
+            raise ConfigError(
+                f"sim person must be one of {', '.join(PERSON_RANGES)}, got {self.person!r}"
+            )
         for name in self.gesture_list() or ():
             parse_request(name)
         self.idle_range()
@@ -94,4 +101,5 @@ class SimOptions:
             "invalid_fraction": self.invalid,
             "autonomous": self.auto,
             "lookahead_s": self.lookahead,
+            "typical_person": self.person == "typical",
         }

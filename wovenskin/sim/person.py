@@ -1,6 +1,7 @@
 """Simulated people: the habits that make one person's gestures differ from another's.
 
-Owns :class:`Person` (a set of traits, drawn by :meth:`Person.sample`) and :class:`Trial`,
+Owns :class:`Person` (a set of traits, drawn by :meth:`Person.sample` or, a typical one, by
+:meth:`Person.sample_typical`) and :class:`Trial`,
 which draws the parameters of one performance around the person's habits (trial-to-trial
 variation) while keeping them inside the ranges of ``docs/gestures.md``.
 
@@ -14,7 +15,7 @@ up (toward row 0), 90 = to the right.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -23,6 +24,22 @@ from wovenskin.settings import from_dict
 from wovenskin.sim import spec
 
 FINGERS = ("thumb", "index", "middle", "ring", "little")
+
+# A typical person's traits (:meth:`Person.sample_typical`): ``(low, high)`` bounds that
+# keep out the lightest touch, the far edge of the skin, the oddest hand postures and the
+# most erratic trial-to-trial variation; every other trait keeps its full range.
+TYPICAL_TRAITS: dict[str, tuple[float, float]] = {
+    "pace": (0.15, 0.85),
+    "reach": (0.15, 0.85),
+    "force_n": (0.6, 1.5),
+    "location_u": (0.4, 0.6),
+    "location_v": (0.4, 0.6),
+    "location_spread": (0.03, 0.08),
+    "hand_angle_deg": (-45.0, 45.0),
+    "hand_angle_sd_deg": (8.0, 15.0),
+    "posture_variety": (0.05, 0.15),
+    "consistency": (0.5, 1.0),
+}
 
 
 @dataclass(frozen=True)
@@ -140,6 +157,20 @@ class Person:
             consistency=u(0.5, 1.5),
             flick_probability=u(0.0, 0.4),
         )
+
+    @classmethod
+    def sample_typical(cls, rng: np.random.Generator) -> Person:
+        """A random person of typical habits: :meth:`sample` with the traits of
+        :data:`TYPICAL_TRAITS` kept within their bounds.
+
+        The full range trains and tests recognisers; the person behind a demonstration's
+        gesture buttons (the dashboard's, ``wovenskin run``'s) is this one."""
+        person = cls.sample(rng)
+        kept = {
+            name: float(np.clip(getattr(person, name), low, high))
+            for name, (low, high) in TYPICAL_TRAITS.items()
+        }
+        return replace(person, **kept)
 
     def to_dict(self) -> dict:
         return asdict(self)
