@@ -43,9 +43,7 @@ def atomic_writer(path: str | os.PathLike, *, binary: bool = True):
     if not target.parent.is_dir():  # never name the temporary file in the error
         raise FileNotFoundError(f"{target}: no such folder {str(target.parent)!r} to write into")
     try:
-        fd, tmp = tempfile.mkstemp(
-            dir=target.parent, prefix=f".{target.name}.", suffix=".partial"
-        )
+        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".partial")
     except OSError as exc:
         raise type(exc)(f"{target}: cannot write ({exc.strerror or exc})") from None
     try:

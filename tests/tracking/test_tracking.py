@@ -115,6 +115,7 @@ def test_a_finger_joining_the_touch_restarts_its_coherent_motion() -> None:
     one = [[(100.0, 30.0)]] * 30
     pair = [[(100.0 - 0.4 * k, 30.0), (100.0 - 0.4 * k, 48.0)] for k in range(60)]  # 24 mm up
     ramp = list(np.linspace(0.005, 0.05, 10)) + [0.05] * 50
+
     def read(settings: TouchSettings | None = None) -> TouchReader:
         reader = TouchReader(ROWS, COLS, RP, CP, RATE, settings)
         for k, tips in enumerate(one + pair):

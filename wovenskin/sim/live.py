@@ -92,7 +92,8 @@ class SimulatedSkinSource:
     ) -> None:
         """``max_batch``: most frames one :meth:`poll` returns when ``speed=0``;
         ``typical_person``: draw the person (when ``person`` is None) with
-        :meth:`Person.sample_typical`, else from the full range; ``autonomous=False``: the person rests and acts only on :meth:`perform` requests;
+        :meth:`Person.sample_typical`, else from the full range; ``autonomous=False``: the
+        person rests and acts only on :meth:`perform` requests;
         ``lookahead_s``: seconds of frames rendered ahead of the wall clock; ``clock``:
         the wall clock (seconds, never going back) that paces the stream."""
         if not np.isfinite(speed) or speed < 0:

@@ -86,9 +86,7 @@ class FrameContacts:
         return int(self.y.shape[0])
 
 
-EMPTY = FrameContacts(
-    np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64), ()
-)
+EMPTY = FrameContacts(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64), ())
 
 
 def neighbourhood(values: np.ndarray, fill: float, reduce) -> np.ndarray:

@@ -79,7 +79,11 @@ class TouchSettings:
 
     def __post_init__(self) -> None:
         for name in (
-            "steady_rate", "path_step_mm", "turn_step_mm", "max_step_turn_deg", "press_span_s"
+            "steady_rate",
+            "path_step_mm",
+            "turn_step_mm",
+            "max_step_turn_deg",
+            "press_span_s",
         ):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
