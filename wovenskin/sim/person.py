@@ -26,15 +26,18 @@ from wovenskin.sim import spec
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 
 # A typical person's traits (:meth:`Person.sample_typical`): ``(low, high)`` bounds that
-# keep out the lightest touch, the far edge of the skin, the oddest hand postures and the
-# most erratic trial-to-trial variation; every other trait keeps its full range.
+# keep out the lightest touch and press, the far edge of the skin, the tightest pair of fingers, the
+# oddest hand postures and the most erratic trial-to-trial variation; every other trait
+# keeps its full range.
 TYPICAL_TRAITS: dict[str, tuple[float, float]] = {
     "pace": (0.15, 0.85),
     "reach": (0.15, 0.85),
     "force_n": (0.6, 1.5),
+    "press_ratio": (2.2, 3.6),
     "location_u": (0.4, 0.6),
     "location_v": (0.4, 0.6),
     "location_spread": (0.03, 0.08),
+    "finger_spacing_mm": (17.0, 22.0),
     "hand_angle_deg": (-45.0, 45.0),
     "hand_angle_sd_deg": (8.0, 15.0),
     "posture_variety": (0.05, 0.15),

@@ -12,6 +12,7 @@ const token = params.get("token");
 
 const page = {
   scene: null, state: null, socket: null, received: 0, receivedAt: [], errors: [],
+  releasedAt: null, releaseMs: [], // a release with a command on (ms), -> the state without
   sent: 0, connected: false,
 };
 window.wovenskin = page; // for tests and the browser console
@@ -85,6 +86,11 @@ function onState(state) {
   const now = performance.now();
   page.receivedAt.push(now);
   while (page.receivedAt.length && now - page.receivedAt[0] > 2000) page.receivedAt.shift();
+  if (page.releasedAt !== null && !state.recognition?.command) { // the release's effect, seen
+    page.releaseMs.push(now - page.releasedAt);
+    if (page.releaseMs.length > 50) page.releaseMs.shift();
+    page.releasedAt = null;
+  }
   updateHeader(state);
   updateSkin(state.skin);
   updateRecognition(state);
@@ -105,6 +111,13 @@ function ratePerSecond(stamps) {
   return span > 0 ? (stamps.length - 1) / span : null;
 }
 
+function median(values) {
+  if (!values.length) return null;
+  const sorted = [...values].sort((a, b) => a - b);
+  const mid = sorted.length >> 1;
+  return sorted.length % 2 ? sorted[mid] : (sorted[mid - 1] + sorted[mid]) / 2;
+}
+
 function pageRate() {
   const rate = ratePerSecond(page.receivedAt);
   return rate === null ? "-" : rate.toFixed(0);
@@ -112,7 +125,9 @@ function pageRate() {
 
 function updateHeader(state) {
   const r = state.rates || {};
-  $("rates").textContent = `control ${r.control_hz ?? "-"} Hz · page ${pageRate()} Hz`;
+  const release = median(page.releaseMs.slice(-10));
+  $("rates").textContent = `control ${r.control_hz ?? "-"} Hz · page ${pageRate()} Hz`
+    + (release === null ? "" : ` · release to stop ${release.toFixed(0)} ms`);
   const s = state.safety;
   if (s.user_stopped) setPill($("safety"), "STOPPED (resume to move)", "bad");
   else if (s.stopped) setPill($("safety"), `stopped: ${s.stops.length ? s.stops[s.stops.length - 1].reason : ""}`, "warn");
@@ -391,7 +406,10 @@ skinCanvas.addEventListener("pointermove", (event) => {
 for (const kind of ["pointerup", "pointercancel", "lostpointercapture"]) {
   skinCanvas.addEventListener(kind, (event) => {
     if (pointers.delete(event.pointerId)) {
-      if (pointers.size === 0) spread = null; // the next press starts from the hover spread
+      if (pointers.size === 0) {
+        spread = null; // the next press starts from the hover spread
+        if (page.state?.recognition?.command) page.releasedAt = performance.now();
+      }
       sendTouches([sample(event)]);
     }
   });
