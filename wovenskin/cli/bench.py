@@ -212,7 +212,7 @@ def bench_gestures(
     model: Path = MODEL,
     streams: int = typer.Option(
         None,
-        min=1,
+        min=0,
         max=100000,
         help="Mixed independent streams for recognition (default 4; 0: none).",
     ),
@@ -375,10 +375,10 @@ def bench_model(
 def bench_control(
     model: Path = MODEL,
     loop_seconds: float = typer.Option(
-        5.0, min=0.1, max=3600, help="Seconds of the real-time control loop."
+        5.0, min=0, max=3600, help="Seconds of the real-time control loop (0: none)."
     ),
     streams: int = typer.Option(
-        2, min=1, max=100000, help="Simulated streams behind the latency figures."
+        2, min=0, max=100000, help="Simulated streams behind the latency figures (0: none)."
     ),
     stream_seconds: float = typer.Option(
         40.0, min=0.1, max=3600, help="Length of each simulated stream."
@@ -467,7 +467,7 @@ def bench_dashboard(
         None, min=1.0, max=240.0, help="Page updates per second asked of the server (default 40)."
     ),
     rounds: int = typer.Option(
-        2, min=1, max=10000, help="Rounds of the 14 gestures drawn as on a touch screen (0: none)."
+        2, min=0, max=10000, help="Rounds of the 14 gestures drawn as on a touch screen (0: none)."
     ),
     seed: int = typer.Option(
         0, min=0, max=2**32 - 1, help="Seed of the simulated people who draw the gestures."
