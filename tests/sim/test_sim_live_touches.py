@@ -124,6 +124,24 @@ def test_a_lift_off_right_after_a_motion_plays_the_motion_first():
     assert touches.timeline[-1].t == pytest.approx(moving[-1].t)  # then the lift, at once
 
 
+def test_a_lift_off_after_a_rest_drops_the_motion_a_late_sender_left_queued():
+    """A busy page sends a slide late and sparse, and each stretched segment puts the
+    stream further behind the hand; the hand then rests longer than the play-out delay and
+    lifts: the lift plays at once, the stale rest of the slide is dropped."""
+    touches = OutsideTouches(FS, hover_tau_s=0.01)
+    head, client = 1.0, 500.0
+    for k in range(21):  # a slide drawn over 0.2 s, still queued 0.4 s deep
+        touches.add({1: Fingertip(50.0, 20.0 + 2 * k, 1.5)}, client + 0.01 * k, head)
+    touches.timeline = type(touches.timeline)(
+        type(sample)(head + 2 * (sample.t - head), sample.touches) for sample in touches.timeline
+    )  # as stretched by a starved sender: the queue reaches 0.4 s past head
+    for k in range(1, 4):  # the hand rests: the page's heartbeat repeats the last sample
+        touches.add({1: Fingertip(50.0, 60.0, 1.5)}, client + 0.2 + 0.1 * k, head)
+    touches.add({}, client + 0.55, head)  # it lifts 0.35 s after the slide ended
+    assert touches.timeline[-1].t == pytest.approx(head)
+    assert [sample.touches for sample in touches.timeline] == [{}]
+
+
 def test_a_lift_off_plays_at_once():
     """The sender reports a lift when the fingertip has left: its force is gone in the
     next frame, and its fringe field a few frames later (no 20 ms ramp, no hover tail)."""

@@ -137,6 +137,7 @@ class OutsideTouches:
         self._offset: float | None = None  # stream time = client time + offset
         self._client_t: float | None = None  # sender's time of the newest sample
         self._still = False  # the newest sample repeated the one before (a rest)
+        self._moved_t: float | None = None  # sender's time of the last sample that moved
         self._trail: dict[int, list[tuple[float, float]]] = {}  # last 2 positions each
         self.jitter_s = TOUCH_JITTER_S  # the play-out delay a new touch starts with
         self._jitter_at = 0.0  # stream time when jitter_s was last raised
@@ -177,7 +178,7 @@ class OutsideTouches:
                 t = head + TOUCH_JITTER_S
             t = self._stretch_starved(capped, client_t, t, head)
             if not capped:
-                t = self._lift_now(t, head, wall)
+                t = self._lift_now(t, head, wall, float(client_t))
                 last = self.timeline[-1].t if self.timeline else head
             t = max(t, last)
             self._client_t = float(client_t)
@@ -185,6 +186,8 @@ class OutsideTouches:
             if previous is None:
                 previous = {key: finger.target for key, finger in self.fingers.items()}
             self._still = not _changes(previous, capped)
+            if not self._still or set(previous) != set(capped) or idle:
+                self._moved_t = float(client_t)
             if idle:
                 self._trail.clear()
             start = self.timeline[-1].t if self.timeline else max(
@@ -194,13 +197,23 @@ class OutsideTouches:
         self._follow_trail(capped)
         self.timeline.append(_TouchSample(t, capped))
 
-    def _lift_now(self, t: float, head: float, wall: float | None) -> float:
+    def _lift_now(self, t: float, head: float, wall: float | None, client_t: float) -> float:
         """The stream time of a lift-off sample due at ``t``: earlier by how far the stream
         fell behind the wall clock since the touch began (less :data:`SLOW_STREAM_S`),
         and no later than the end of the motion still queued (a rest before a lift-off
         says nothing more: the play-out delay is there to keep a motion's shape, not to
         hold a resting finger down), never before ``head``; queued samples after it are
-        dropped (class docstring)."""
+        dropped (class docstring).
+
+        A hand that rested on the sender's clock for longer than the touch's play-out delay
+        before lifting lifts at ``head``, the motion still queued dropped: the sender's
+        samples came late and sparse (a busy page stretches each slide: see
+        :meth:`_stretch_starved`), the stream fell that far behind the hand, and the
+        motion it still has to play is one the person finished a rest ago.  The arm stops
+        when the finger lifts, not 0.3-0.7 s later (measured in Chromium)."""
+        rested = None if self._moved_t is None else client_t - self._moved_t
+        if rested is not None and rested >= self._touch_delay:
+            t = head
         if wall is not None and self._wall_anchor is not None:
             wall0, head0 = self._wall_anchor
             behind = (float(wall) - wall0) - (head - head0) - SLOW_STREAM_S
