@@ -50,5 +50,5 @@ def test_a_documented_command_line_parses(doc: str, line: str) -> None:
     except Exception as exc:
         if type(exc).__name__ == "Exit":  # --help, --version
             return
-        message = getattr(exc, "format_message", lambda: str(exc))()
-        pytest.fail(f"{doc}: {line}: {message}")
+        shown = exc.format_message() if hasattr(exc, "format_message") else str(exc)
+        pytest.fail(f"{doc}: {line}: {shown}")
