@@ -6,7 +6,8 @@ session issued for that press must be exactly that gesture's, every time.  Then 
 drawn on the page are held and released, and the page's own clock measures how long the
 release takes to show "no command" (``window.wovenskin.releaseMs``); the figures are saved
 to ``artifacts/browser/buttons.json`` and reported in ``docs/benchmarks.md``, never asserted
-(a timing depends on the machine).  Minutes of browser time: ``make test-acceptance``.
+(a timing depends on the machine).  Last, a drawn swipe held still for 30 s must keep its
+command until the release.  Minutes of browser time: ``make test-acceptance``.
 """
 
 from __future__ import annotations
@@ -89,6 +90,30 @@ def test_the_release_of_a_drawn_swipe_is_measured_on_the_page(page) -> None:  # 
     )
     assert "release to stop" in page.locator("#rates").inner_text()
     assert page.problems == []
+
+
+def test_a_drawn_swipe_held_still_for_30_s_keeps_its_command(page, dashboard) -> None:  # noqa: F811
+    """A swipe drawn with the mouse, then held still with the button down for 30 s: the
+    command stays on (and the arm moving, within the workspace) until the release."""
+    box = page.locator("#skin").bounding_box()
+    x = box["x"] + box["width"] * 0.5
+    page.mouse.move(x, box["y"] + box["height"] * 0.3)
+    page.mouse.down()
+    for step in range(1, 31):  # a downward swipe: the tool's -y, away from the limits
+        page.mouse.move(x, box["y"] + box["height"] * (0.3 + 0.45 * step / 30))
+        time.sleep(0.012)
+    assert _wait_for(page, "window.wovenskin.state.recognition.command !== null", 5.0)
+    held = _state(page)["recognition"]["command"]
+    session = dashboard.runner.session
+    first = len(session.pipeline.changes)
+    started = time.monotonic()
+    while time.monotonic() - started < 30.0:
+        time.sleep(0.5)
+        ended = [c for c in session.pipeline.changes[first:] if c.gesture != held]
+        assert not ended, f"{held} ended after {time.monotonic() - started:.1f} s: {ended}"
+    page.mouse.up()
+    assert _wait_for(page, "window.wovenskin.state.recognition.command === null", 5.0)
+    _merge_artifact({"held_30_s": held})
 
 
 def _merge_artifact(figures: dict) -> None:
