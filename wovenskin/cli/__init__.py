@@ -10,7 +10,7 @@ from wovenskin.cli.app import app
 
 # Importing a command module registers its commands; `--help` lists them in this order.
 # isort: off
-from wovenskin.cli import skin, stream, bench, training, adapt, robot, reproduce, ros2  # noqa: F401, E402
+from wovenskin.cli import skin, stream, bench, dataset, training, adapt, robot, reproduce, ros2  # noqa: F401, E402
 from wovenskin.cli.study import study_app  # noqa: E402
 # isort: on
 

@@ -211,10 +211,7 @@ def bench_recognition(
 def bench_gestures(
     model: Path = MODEL,
     streams: int = typer.Option(
-        None,
-        min=0,
-        max=100000,
-        help="Mixed independent streams for recognition (default 4; 0: none).",
+        None, min=0, max=100000, help="Mixed independent streams (default 4; 0: none)."
     ),
     seconds: float = typer.Option(
         None, min=0.1, max=3600, help="Length of each mixed stream (default 120)."
@@ -458,10 +455,7 @@ def bench_dashboard(
         None, min=0.1, max=3600, help="Seconds of page states counted while idle (default 5)."
     ),
     swipes: int = typer.Option(
-        None,
-        min=1,
-        max=10000,
-        help="Swipes sent over the socket, alternately up and down (default 6).",
+        None, min=1, max=10000, help="Swipes over the socket, alternately up and down (default 6)."
     ),
     ui_rate: float = typer.Option(
         None, min=1.0, max=240.0, help="Page updates per second asked of the server (default 40)."
