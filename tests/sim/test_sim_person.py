@@ -106,3 +106,33 @@ def test_pad_grows_with_force_within_the_fingertip_range():
     assert (2 * minor >= low).all() and (2 * major <= high).all()
     assert (np.diff(minor) >= 0).all() and minor[-1] > minor[0] + 1.0
     assert (major >= minor).all()
+
+
+def test_a_typical_person_keeps_every_bounded_trait_within_its_bounds():
+    from wovenskin.sim.person import TYPICAL_TRAITS
+
+    for seed in range(50):
+        person = Person.sample_typical(np.random.default_rng(seed))
+        for name, (low, high) in TYPICAL_TRAITS.items():
+            assert low <= getattr(person, name) <= high, (seed, name)
+    # the other traits keep the full range's draw
+    full, typical = (
+        draw(np.random.default_rng(7)) for draw in (Person.sample, Person.sample_typical)
+    )
+    assert typical.pad_mm == full.pad_mm and typical.handedness == full.handedness
+
+
+def test_the_live_skin_draws_a_typical_person_unless_told_any():
+    from wovenskin.errors import ConfigError
+    from wovenskin.sim.live import SimulatedSkinSource
+    from wovenskin.sim.live_options import SimOptions
+
+    assert SimOptions.read({}).source_kwargs()["typical_person"] is True
+    assert SimOptions.read({"person": "any"}).source_kwargs()["typical_person"] is False
+    with pytest.raises(ConfigError, match="sim person must be one of typical, any"):
+        SimOptions.read({"person": "median"})
+    from wovenskin.sim.person import TYPICAL_TRAITS
+
+    for seed in range(5):
+        person = SimulatedSkinSource(seed=seed, autonomous=False).person
+        assert all(low <= getattr(person, n) <= high for n, (low, high) in TYPICAL_TRAITS.items())
