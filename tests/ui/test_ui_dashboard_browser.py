@@ -407,18 +407,24 @@ def test_a_mouse_hand_of_two_traces_a_clockwise_circle(page, dashboard) -> None:
 def test_a_mouse_hand_spread_while_hovering_then_pinched_is_a_pinch_in(page) -> None:
     page.select_option("#fingers", "2")
     cx, cy = _centre(page)
-    page.mouse.move(cx, cy)
-    for _ in range(14):  # hovering: the wheel spreads the hand from 18 to 60 mm
-        page.mouse.wheel(0, -100)
-    _save(page, "dashboard-hand-spread.png")  # the dashed ghost fingertips
-    page.mouse.down()
-    for _ in range(16):  # pressing: the wheel brings the fingertips together (to 12 mm)
-        page.mouse.wheel(0, 100)
-        time.sleep(0.02)
-    recognised = _wait_for(page, "window.wovenskin.state.recognition.command", 3.0)
-    command = _state(page)["recognition"]["command"]
-    page.mouse.up()
-    assert recognised and command == "pinch_in_2f", f"command {command!r}"
+    seen = []
+    for _ in range(3):  # as a user would, pinch again if a pinch was not taken (at most 3)
+        page.mouse.move(cx, cy)
+        for _ in range(14):  # hovering: the wheel spreads the hand from 18 to 60 mm
+            page.mouse.wheel(0, -100)
+        _save(page, "dashboard-hand-spread.png")  # the dashed ghost fingertips
+        page.mouse.down()
+        for _ in range(16):  # pressing: the wheel brings the fingertips together (to 12 mm)
+            page.mouse.wheel(0, 100)
+            time.sleep(0.02)
+        recognised = _wait_for(page, "window.wovenskin.state.recognition.command", 3.0)
+        command = _state(page)["recognition"]["command"]
+        page.mouse.up()
+        seen.append(command)
+        if recognised and command is not None:
+            break
+        _wait_for(page, "!window.wovenskin.state.recognition.command", 3.0)
+    assert command == "pinch_in_2f", f"commands {seen!r}"
     assert page.problems == []
 
 
